@@ -1,0 +1,35 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Image metrics shared by the bench scripts.
+
+relative MSE = mean over pixels and RGB channels of (x - ref)^2 / (ref^2 + 0.01), the metric of
+../shared/references/README.md.
+"""
+import sys
+
+import numpy as np
+import OpenImageIO as oiio
+
+
+def read_rgb(path, layer=""):
+    """Float32 HxWx3 array of an EXR's main layer (or of the layer named `layer`)."""
+    buf = oiio.ImageBuf(path)
+    if buf.has_error:
+        raise RuntimeError(f"{path}: {buf.geterror()}")
+    spec = buf.spec()
+    names = list(spec.channelnames)
+    wanted = ["R", "G", "B"] if not layer else [f"{layer}.R", f"{layer}.G", f"{layer}.B"]
+    idx = [names.index(n) for n in wanted]
+    pixels = buf.get_pixels(oiio.FLOAT)
+    return np.asarray(pixels)[:, :, idx].astype(np.float64)
+
+
+def rel_mse(image, reference):
+    return float(np.mean((image - reference) ** 2 / (reference ** 2 + 0.01)))
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 3:
+        sys.exit("usage: metrics.py image.exr reference.exr")
+    a, b = read_rgb(sys.argv[1]), read_rgb(sys.argv[2])
+    print(f"relMSE {rel_mse(a, b):.6g}  mean {a.mean(axis=(0, 1))}  ref mean {b.mean(axis=(0, 1))}")

@@ -1,0 +1,432 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// Mesh files -> TriangleMeshData. CGAL reads the polygon soups; triangulation, degeneracy
+// filtering and validation are done here so that every format gets the same treatment.
+#include "core/geometry/mesh_io.h"
+
+#include <CGAL/IO/OBJ.h>
+#include <CGAL/IO/OFF.h>
+#include <CGAL/IO/PLY.h>
+#include <CGAL/Simple_cartesian.h>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <optional>
+
+namespace gdmlt {
+namespace {
+
+using Kernel = CGAL::Simple_cartesian<double>;
+using CgalPoint = Kernel::Point_3;
+using Polygon = std::vector<std::size_t>;
+using Triangle = std::array<std::size_t, 3>;
+
+/// What a reader produces before triangulation. Normals and uvs are per vertex and either
+/// empty or as many as there are positions.
+struct PolygonSoup {
+    std::vector<Vec3d> positions;
+    std::vector<Vec3d> normals;
+    std::vector<Vec2d> uvs;
+    std::vector<Polygon> polygons;
+};
+
+/// Any failure while reading: the caller adds the scene location and file name.
+struct MeshReadError {
+    std::string message;
+};
+
+std::vector<Vec3d> to_vectors(const std::vector<CgalPoint>& points) {
+    std::vector<Vec3d> vectors;
+    vectors.reserve(points.size());
+    for (const CgalPoint& p : points) vectors.emplace_back(p.x(), p.y(), p.z());
+    return vectors;
+}
+
+PolygonSoup read_obj(std::istream& stream) {
+    // CGAL's OBJ reader keeps positions and faces only (vn/vt are skipped), so OBJ meshes get
+    // normals from compute_vertex_normals.
+    std::vector<CgalPoint> points;
+    PolygonSoup soup;
+    if (!CGAL::IO::read_OBJ(stream, points, soup.polygons, CGAL::parameters::verbose(false)))
+        throw MeshReadError{
+            "not a readable OBJ file (malformed or non-finite vertex, or bad face line)"};
+    soup.positions = to_vectors(points);
+    return soup;
+}
+
+PolygonSoup read_off(std::istream& stream) {
+    std::vector<CgalPoint> points;
+    std::vector<Kernel::Vector_3> normals;
+    std::vector<Kernel::Point_2> uvs;
+    PolygonSoup soup;
+    const bool ok = CGAL::IO::read_OFF(
+        stream, points, soup.polygons,
+        CGAL::parameters::vertex_normal_output_iterator(std::back_inserter(normals))
+            .vertex_texture_output_iterator(std::back_inserter(uvs))
+            .verbose(false));
+    if (!ok)
+        throw MeshReadError{
+            "not a readable OFF file (malformed or non-finite vertex, or bad face)"};
+    soup.positions = to_vectors(points);
+    if (normals.size() == points.size())
+        for (const Kernel::Vector_3& n : normals) soup.normals.emplace_back(n.x(), n.y(), n.z());
+    if (uvs.size() == points.size())
+        for (const Kernel::Point_2& uv : uvs) soup.uvs.emplace_back(uv.x(), uv.y());
+    return soup;
+}
+
+// --- PLY ------------------------------------------------------------------------------------
+// CGAL's public read_PLY drops vertex normals and uvs of a polygon soup, so the element loop is
+// written here on top of CGAL's PLY header reader and typed property decoders.
+
+using PlyElement = CGAL::IO::internal::PLY_element;
+
+/// Reads one item (all its properties) of a PLY element from the stream.
+void read_ply_item(std::istream& stream, PlyElement& element) {
+    for (std::size_t k = 0; k < element.number_of_properties(); ++k) {
+        element.property(k)->get(stream);
+        if (stream.fail())
+            throw MeshReadError{
+                "truncated or malformed PLY data (or a non-finite number in ASCII)"};
+    }
+}
+
+bool has_real_property(PlyElement& element, const char* name) {
+    return element.has_property(name, 0.0);  // float or double
+}
+
+double real_property(PlyElement& element, const char* name) {
+    double value = 0.0;
+    element.assign(value, name);
+    return value;
+}
+
+/// Face index lists come in several integer types; tries one.
+template <typename Index>
+bool read_face_indices(PlyElement& element, const char* name, Polygon& polygon) {
+    if (!element.has_property(name, std::vector<Index>())) return false;
+    std::vector<Index> indices;
+    element.assign(indices, name);
+    polygon.clear();
+    for (Index index : indices) {
+        if constexpr (std::is_signed_v<Index>)
+            if (index < 0) throw MeshReadError{"negative vertex index in a PLY face"};
+        polygon.push_back(static_cast<std::size_t>(index));
+    }
+    return true;
+}
+
+bool read_face_indices_any_type(PlyElement& element, const char* name, Polygon& polygon) {
+    return read_face_indices<std::int32_t>(element, name, polygon) ||
+           read_face_indices<std::uint32_t>(element, name, polygon) ||
+           read_face_indices<std::int16_t>(element, name, polygon) ||
+           read_face_indices<std::uint16_t>(element, name, polygon) ||
+           read_face_indices<std::int8_t>(element, name, polygon) ||
+           read_face_indices<std::uint8_t>(element, name, polygon);
+}
+
+void read_ply_vertices(std::istream& stream, PlyElement& element, PolygonSoup& soup) {
+    if (!has_real_property(element, "x") || !has_real_property(element, "y") ||
+        !has_real_property(element, "z"))
+        throw MeshReadError{"PLY vertices need float or double x, y, z properties"};
+    const bool has_normals = has_real_property(element, "nx") && has_real_property(element, "ny") &&
+                             has_real_property(element, "nz");
+    // Exporters disagree on the uv property names.
+    static constexpr std::array<std::array<const char*, 2>, 4> kUvNames = {
+        {{"u", "v"}, {"s", "t"}, {"texture_u", "texture_v"}, {"texture_s", "texture_t"}}};
+    std::optional<std::array<const char*, 2>> uv_names;
+    for (const auto& names : kUvNames)
+        if (has_real_property(element, names[0]) && has_real_property(element, names[1])) {
+            uv_names = names;
+            break;
+        }
+
+    for (std::size_t i = 0; i < element.number_of_items(); ++i) {
+        read_ply_item(stream, element);
+        soup.positions.emplace_back(real_property(element, "x"), real_property(element, "y"),
+                                    real_property(element, "z"));
+        if (has_normals)
+            soup.normals.emplace_back(real_property(element, "nx"), real_property(element, "ny"),
+                                      real_property(element, "nz"));
+        if (uv_names)
+            soup.uvs.emplace_back(real_property(element, (*uv_names)[0]),
+                                  real_property(element, (*uv_names)[1]));
+    }
+}
+
+void read_ply_faces(std::istream& stream, PlyElement& element, PolygonSoup& soup) {
+    for (std::size_t i = 0; i < element.number_of_items(); ++i) {
+        read_ply_item(stream, element);
+        Polygon polygon;
+        if (!read_face_indices_any_type(element, "vertex_indices", polygon) &&
+            !read_face_indices_any_type(element, "vertex_index", polygon))
+            throw MeshReadError{"PLY faces need a vertex_indices list property"};
+        soup.polygons.push_back(std::move(polygon));
+    }
+}
+
+PolygonSoup read_ply(std::istream& stream) {
+    CGAL::IO::internal::PLY_reader reader(/*verbose=*/false);
+    if (!reader.init(stream)) throw MeshReadError{"not a PLY file (bad header)"};
+    PolygonSoup soup;
+    for (std::size_t e = 0; e < reader.number_of_elements(); ++e) {
+        PlyElement& element = reader.element(e);
+        if (element.name() == "vertex" || element.name() == "vertices") {
+            read_ply_vertices(stream, element, soup);
+        } else if (element.name() == "face" || element.name() == "faces") {
+            read_ply_faces(stream, element, soup);
+        } else {
+            // Unknown elements still have to be consumed to reach the ones after them.
+            for (std::size_t i = 0; i < element.number_of_items(); ++i)
+                read_ply_item(stream, element);
+        }
+    }
+    return soup;
+}
+
+// --- Triangulation --------------------------------------------------------------------------
+
+double cross_2d(const Vec2d& a, const Vec2d& b) {
+    return a.x() * b.y() - a.y() * b.x();
+}
+
+bool point_in_triangle_2d(const Vec2d& p, const Vec2d& a, const Vec2d& b, const Vec2d& c) {
+    // Counter-clockwise triangle; points on the boundary count as inside so that an ear never
+    // touches another vertex.
+    return cross_2d(b - a, p - a) >= 0.0 && cross_2d(c - b, p - b) >= 0.0 &&
+           cross_2d(a - c, p - c) >= 0.0;
+}
+
+/// Splits one polygon into triangles with the polygon's winding. Ear clipping in the plane of
+/// the polygon handles non-convex faces (which a fan would fold over); if no ear is found
+/// (self-intersecting or degenerate input) the rest is fanned.
+void triangulate_polygon(const std::vector<Vec3d>& positions, const Polygon& polygon,
+                         std::vector<Triangle>& triangles) {
+    const std::size_t n = polygon.size();
+    if (n == 3) {
+        triangles.push_back({polygon[0], polygon[1], polygon[2]});
+        return;
+    }
+    // Newell's normal: robust for non-planar and non-convex polygons.
+    Vec3d normal = Vec3d::Zero();
+    for (std::size_t i = 0; i < n; ++i)
+        normal += positions[polygon[i]].cross(positions[polygon[(i + 1) % n]]);
+    int drop_axis = 0;
+    normal.cwiseAbs().maxCoeff(&drop_axis);
+    const int u_axis = (drop_axis + 1) % 3;
+    const int v_axis = (drop_axis + 2) % 3;
+    // Projecting along the dominant axis keeps the winding when that component is positive.
+    const double flip = normal[drop_axis] < 0.0 ? -1.0 : 1.0;
+    std::vector<Vec2d> projected;
+    projected.reserve(n);
+    for (std::size_t index : polygon) {
+        const Vec3d& p = positions[index];
+        projected.emplace_back(p[u_axis], flip * p[v_axis]);
+    }
+
+    std::vector<std::size_t> remaining(n);  // positions in `polygon`
+    for (std::size_t i = 0; i < n; ++i) remaining[i] = i;
+    while (remaining.size() > 3) {
+        const std::size_t count = remaining.size();
+        bool clipped = false;
+        for (std::size_t i = 0; i < count && !clipped; ++i) {
+            const std::size_t previous = remaining[(i + count - 1) % count];
+            const std::size_t current = remaining[i];
+            const std::size_t next = remaining[(i + 1) % count];
+            const Vec2d& a = projected[previous];
+            const Vec2d& b = projected[current];
+            const Vec2d& c = projected[next];
+            if (cross_2d(b - a, c - a) <= 0.0) continue;  // reflex or flat corner
+            bool contains_other = false;
+            for (std::size_t other : remaining) {
+                if (other == previous || other == current || other == next) continue;
+                if (point_in_triangle_2d(projected[other], a, b, c)) {
+                    contains_other = true;
+                    break;
+                }
+            }
+            if (contains_other) continue;
+            triangles.push_back({polygon[previous], polygon[current], polygon[next]});
+            remaining.erase(remaining.begin() + static_cast<std::ptrdiff_t>(i));
+            clipped = true;
+        }
+        if (!clipped) break;
+    }
+    for (std::size_t i = 1; i + 1 < remaining.size(); ++i)
+        triangles.push_back(
+            {polygon[remaining[0]], polygon[remaining[i]], polygon[remaining[i + 1]]});
+}
+
+/// A triangle whose height is below float resolution of its longest edge cannot be
+/// intersected or shaded meaningfully.
+bool is_degenerate(const Triangle& t, const std::vector<Vec3f>& positions) {
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) return true;
+    const Vec3d a = positions[t[0]].cast<double>();
+    const Vec3d b = positions[t[1]].cast<double>();
+    const Vec3d c = positions[t[2]].cast<double>();
+    const double twice_area = (b - a).cross(c - a).norm();
+    const double longest_edge_squared =
+        std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+    constexpr double kMinHeightOverEdge = 1e-7;
+    return !(twice_area > kMinHeightOverEdge * longest_edge_squared);
+}
+
+std::string lowercase_extension(const std::string& path) {
+    std::string extension = std::filesystem::path(path).extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return extension;
+}
+
+std::string vector_text(const Vec3d& v) {
+    return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " +
+           std::to_string(v.z()) + ")";
+}
+
+}  // namespace
+
+TriangleMeshData load_mesh(const std::string& path, const FileLoc& loc) {
+    const auto fail = [&](const std::string& message) -> InputError {
+        return InputError(loc, "mesh file '" + path + "': " + message);
+    };
+
+    const std::string extension = lowercase_extension(path);
+    if (extension != ".obj" && extension != ".ply" && extension != ".off")
+        throw fail("unsupported format '" + extension + "' (expected .obj, .ply or .off)");
+    std::error_code error;
+    if (!std::filesystem::is_regular_file(path, error)) throw fail("file not found");
+    // Binary mode: PLY (and OFF) may be binary; text readers do not mind.
+    std::ifstream stream(path, std::ios::binary);
+    if (!stream) throw fail("cannot open file");
+
+    PolygonSoup soup;
+    try {
+        if (extension == ".obj")
+            soup = read_obj(stream);
+        else if (extension == ".ply")
+            soup = read_ply(stream);
+        else
+            soup = read_off(stream);
+    } catch (const MeshReadError& read_error) {
+        throw fail(read_error.message);
+    }
+
+    const std::size_t vertex_count = soup.positions.size();
+    if (vertex_count >= std::numeric_limits<std::uint32_t>::max())
+        throw fail("too many vertices for 32-bit indices");
+
+    TriangleMeshData mesh;
+    mesh.positions.reserve(vertex_count);
+    for (std::size_t i = 0; i < vertex_count; ++i) {
+        const Vec3f p = soup.positions[i].cast<float>();
+        // Checked after the float conversion: a huge double becomes an infinite float.
+        if (!p.allFinite())
+            throw fail("vertex " + std::to_string(i) + " has a non-finite position " +
+                       vector_text(soup.positions[i]));
+        mesh.positions.push_back(p);
+    }
+
+    // File normals and uvs are optional extras: if any is unusable, drop that attribute for
+    // the whole mesh (the builder then computes smooth normals) rather than reject the mesh.
+    if (soup.normals.size() == vertex_count) {
+        mesh.normals.reserve(vertex_count);
+        for (const Vec3d& n : soup.normals) {
+            const Vec3f unit = n.normalized().cast<float>();
+            if (!(n.norm() > 0.0) || !unit.allFinite()) {
+                mesh.normals.clear();
+                break;
+            }
+            mesh.normals.push_back(unit);
+        }
+    }
+    if (soup.uvs.size() == vertex_count) {
+        mesh.uvs.reserve(vertex_count);
+        for (const Vec2d& uv : soup.uvs) {
+            const Vec2f uv_float = uv.cast<float>();
+            if (!uv_float.allFinite()) {
+                mesh.uvs.clear();
+                break;
+            }
+            mesh.uvs.push_back(uv_float);
+        }
+    }
+
+    std::vector<Triangle> triangles;
+    for (std::size_t f = 0; f < soup.polygons.size(); ++f) {
+        const Polygon& polygon = soup.polygons[f];
+        for (std::size_t index : polygon)
+            if (index >= vertex_count)
+                throw fail("face " + std::to_string(f) + " refers to vertex " +
+                           std::to_string(index) + " but there are only " +
+                           std::to_string(vertex_count));
+        if (polygon.size() < 3) {
+            ++mesh.degenerate_triangles_dropped;
+            continue;
+        }
+        triangulate_polygon(soup.positions, polygon, triangles);
+    }
+
+    mesh.indices.reserve(3 * triangles.size());
+    for (const Triangle& t : triangles) {
+        if (is_degenerate(t, mesh.positions)) {
+            ++mesh.degenerate_triangles_dropped;
+            continue;
+        }
+        for (std::size_t index : t) mesh.indices.push_back(static_cast<std::uint32_t>(index));
+    }
+    if (mesh.indices.empty()) throw fail("no (non-degenerate) triangles");
+    return mesh;
+}
+
+std::vector<Vec3f> compute_vertex_normals(const TriangleMeshData& mesh) {
+    // Each triangle contributes its unit normal weighted by its corner angle at the vertex:
+    // unlike area weighting, the result does not depend on how a surface is tessellated.
+    std::vector<Vec3d> sums(mesh.positions.size(), Vec3d::Zero());
+    std::vector<Vec3d> any_face_normal(mesh.positions.size(), Vec3d::Zero());
+    for (std::size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+        const std::array<std::uint32_t, 3> corner = {mesh.indices[t], mesh.indices[t + 1],
+                                                     mesh.indices[t + 2]};
+        const std::array<Vec3d, 3> p = {mesh.positions[corner[0]].cast<double>(),
+                                        mesh.positions[corner[1]].cast<double>(),
+                                        mesh.positions[corner[2]].cast<double>()};
+        const Vec3d face_cross = (p[1] - p[0]).cross(p[2] - p[0]);
+        const double face_cross_norm = face_cross.norm();
+        if (!(face_cross_norm > 0.0)) continue;
+        const Vec3d face_normal = face_cross / face_cross_norm;
+        for (int k = 0; k < 3; ++k) {
+            const Vec3d to_next =
+                p[static_cast<std::size_t>((k + 1) % 3)] - p[static_cast<std::size_t>(k)];
+            const Vec3d to_previous =
+                p[static_cast<std::size_t>((k + 2) % 3)] - p[static_cast<std::size_t>(k)];
+            // atan2 of |cross| and dot is accurate for small and near-straight angles alike.
+            const double angle =
+                std::atan2(to_next.cross(to_previous).norm(), to_next.dot(to_previous));
+            sums[corner[static_cast<std::size_t>(k)]] += angle * face_normal;
+            any_face_normal[corner[static_cast<std::size_t>(k)]] = face_normal;
+        }
+    }
+
+    std::vector<Vec3f> normals;
+    normals.reserve(sums.size());
+    for (std::size_t i = 0; i < sums.size(); ++i) {
+        const double length = sums[i].norm();
+        if (length > 1e-12) {
+            normals.push_back((sums[i] / length).cast<float>());
+        } else if (any_face_normal[i].squaredNorm() > 0.0) {
+            // Opposite faces cancelled (e.g. a doubled sheet): any adjacent face will do.
+            normals.push_back(any_face_normal[i].cast<float>());
+        } else {
+            // Unreferenced vertex: never shaded, but the result must still be unit length.
+            normals.push_back(Vec3f::UnitZ());
+        }
+    }
+    return normals;
+}
+
+}  // namespace gdmlt

@@ -1,0 +1,151 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "core/geometry/shape.h"
+
+#include "core/sampling/warp.h"
+
+namespace gdmlt {
+namespace {
+
+float triangle_area(const TriangleMesh& mesh, std::size_t triangle) {
+    const Vec3f& p0 = mesh.positions[mesh.indices[3 * triangle]];
+    const Vec3f& p1 = mesh.positions[mesh.indices[3 * triangle + 1]];
+    const Vec3f& p2 = mesh.positions[mesh.indices[3 * triangle + 2]];
+    return 0.5f * (p1 - p0).cross(p2 - p0).norm();
+}
+
+SurfaceInteraction mesh_interaction(const TriangleMesh& mesh, std::uint32_t triangle,
+                                    const Vec2f& b) {
+    const std::uint32_t i0 = mesh.indices[3 * triangle];
+    const std::uint32_t i1 = mesh.indices[3 * triangle + 1];
+    const std::uint32_t i2 = mesh.indices[3 * triangle + 2];
+    const float b0 = 1.f - b.x() - b.y();
+    const Vec3f& p0 = mesh.positions[i0];
+    const Vec3f& p1 = mesh.positions[i1];
+    const Vec3f& p2 = mesh.positions[i2];
+
+    SurfaceInteraction si;
+    si.primitive = triangle;
+    si.surface_param = b;
+    // Rebuilt from barycentrics rather than o + t*d: the error is then relative to the
+    // triangle's coordinates, not to the ray length (DESIGN.md, precision).
+    si.p = b0 * p0 + b.x() * p1 + b.y() * p2;
+    si.dp_du = p1 - p0;
+    si.dp_dv = p2 - p0;
+    const float sign = mesh.flip_normals ? -1.f : 1.f;
+    si.n_geometric = sign * si.dp_du.cross(si.dp_dv).normalized();
+
+    Vec3f n_shading = si.n_geometric;
+    if (!mesh.normals.empty()) {
+        const Vec3f& n0 = mesh.normals[i0];
+        const Vec3f& n1 = mesh.normals[i1];
+        const Vec3f& n2 = mesh.normals[i2];
+        const Vec3f n_interp = b0 * n0 + b.x() * n1 + b.y() * n2;
+        const float length = n_interp.norm();
+        if (length > 1e-20f) {
+            const Vec3f n = n_interp / length;
+            // d(N/|N|) = (I - n n^T) dN / |N|
+            const Vec3f dN_du = n1 - n0, dN_dv = n2 - n0;
+            n_shading = sign * n;
+            si.dn_du = sign * (dN_du - n * n.dot(dN_du)) / length;
+            si.dn_dv = sign * (dN_dv - n * n.dot(dN_dv)) / length;
+        }
+    }
+    si.shading = Frame::from_normal_and_tangent(n_shading, si.dp_du);
+    if (!mesh.uvs.empty())
+        si.uv = b0 * mesh.uvs[i0] + b.x() * mesh.uvs[i1] + b.y() * mesh.uvs[i2];
+    else
+        si.uv = b;
+    return si;
+}
+
+/// Sphere parametrised by u = phi / 2pi, v = theta / pi around the world z axis.
+SurfaceInteraction sphere_interaction_at_direction(const Sphere& sphere, const Vec3f& dir) {
+    const float r = sphere.radius;
+    const float cos_theta = std::clamp(dir.z(), -1.f, 1.f);
+    const float sin_theta = safe_sqrt(1.f - cos_theta * cos_theta);
+    float phi = std::atan2(dir.y(), dir.x());
+    if (phi < 0.f) phi += 2.f * kPi;
+    const float cos_phi = std::cos(phi), sin_phi = std::sin(phi);
+
+    SurfaceInteraction si;
+    si.p = sphere.center + r * dir;
+    si.surface_param = Vec2f(phi / (2.f * kPi), std::acos(cos_theta) / kPi);
+    si.uv = si.surface_param;
+    si.dp_du = (2.f * kPi * r) * Vec3f(-sin_theta * sin_phi, sin_theta * cos_phi, 0.f);
+    si.dp_dv = (kPi * r) * Vec3f(cos_theta * cos_phi, cos_theta * sin_phi, -sin_theta);
+    const float sign = sphere.flip_normals ? -1.f : 1.f;
+    si.n_geometric = sign * dir;
+    si.dn_du = sign * si.dp_du / r;
+    si.dn_dv = sign * si.dp_dv / r;
+    si.shading = Frame::from_normal_and_tangent(si.n_geometric, si.dp_du);
+    return si;
+}
+
+}  // namespace
+
+Shape::Shape(TriangleMesh mesh, int bsdf, std::string id)
+    : geometry_(std::move(mesh)), bsdf_(bsdf), id_(std::move(id)) {
+    const auto& m = std::get<TriangleMesh>(geometry_);
+    std::vector<float> areas(m.triangle_count());
+    double total = 0.0;
+    for (std::size_t t = 0; t < areas.size(); ++t) {
+        areas[t] = triangle_area(m, t);
+        total += areas[t];
+    }
+    area_ = static_cast<float>(total);
+    triangle_areas_ = Distribution1D(areas);
+}
+
+Shape::Shape(Sphere sphere, int bsdf, std::string id)
+    : geometry_(sphere), bsdf_(bsdf), id_(std::move(id)) {
+    area_ = 4.f * kPi * sphere.radius * sphere.radius;
+}
+
+SurfaceInteraction Shape::interaction(std::uint32_t primitive, const Vec2f& barycentric,
+                                      const Vec3f& ray_origin, const Vec3f& ray_direction,
+                                      float t) const {
+    SurfaceInteraction si;
+    if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
+        si = mesh_interaction(*mesh, primitive, barycentric);
+    } else {
+        const auto& sphere = std::get<Sphere>(geometry_);
+        // Project the hit back onto the sphere: exact normal, position error ~ ulp(|p|).
+        const Vec3f hit = ray_origin + t * ray_direction;
+        Vec3f dir = hit - sphere.center;
+        const float length = dir.norm();
+        dir = length > 0.f ? Vec3f(dir / length) : Vec3f::UnitZ();
+        si = sphere_interaction_at_direction(sphere, dir);
+    }
+    si.t = t;
+    return si;
+}
+
+SurfaceInteraction Shape::interaction_at(std::uint32_t primitive, const Vec2f& param) const {
+    if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_))
+        return mesh_interaction(*mesh, primitive, param);
+    const auto& sphere = std::get<Sphere>(geometry_);
+    const float phi = 2.f * kPi * param.x(), theta = kPi * param.y();
+    const Vec3f dir(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                    std::cos(theta));
+    return sphere_interaction_at_direction(sphere, dir);
+}
+
+ShapeSample Shape::sample_area(const Vec2f& u, float u_primitive) const {
+    ShapeSample s;
+    if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
+        if (!triangle_areas_.valid()) return s;
+        const auto triangle = static_cast<std::uint32_t>(triangle_areas_.sample(u_primitive));
+        const SurfaceInteraction si = mesh_interaction(*mesh, triangle, warp::square_to_uniform_triangle(u));
+        s.p = si.p;
+        s.n_geometric = si.n_geometric;
+    } else {
+        const auto& sphere = std::get<Sphere>(geometry_);
+        const Vec3f dir = warp::square_to_uniform_sphere(u);
+        s.p = sphere.center + sphere.radius * dir;
+        s.n_geometric = sphere.flip_normals ? Vec3f(-dir) : dir;
+    }
+    s.pdf_area = area_ > 0.f ? 1.f / area_ : 0.f;
+    return s;
+}
+
+}  // namespace gdmlt

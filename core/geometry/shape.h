@@ -1,0 +1,72 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+// Shapes in world space. Triangle meshes (obj, ply, rectangle, cube, disk) and analytic spheres.
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "core/geometry/interaction.h"
+#include "core/math/types.h"
+#include "core/sampling/distribution_1d.h"
+
+namespace gdmlt {
+
+struct TriangleMesh {
+    std::vector<Vec3f> positions;  // world space
+    std::vector<Vec3f> normals;    // world space, per vertex; empty when face_normals
+    std::vector<Vec2f> uvs;        // per vertex; may be empty
+    std::vector<std::uint32_t> indices;
+    bool flip_normals = false;
+
+    std::size_t triangle_count() const { return indices.size() / 3; }
+};
+
+/// Sphere with exact normals and analytic differentials (Embree intersects it; we project the
+/// hit point back onto the sphere).
+struct Sphere {
+    Vec3f center = Vec3f::Zero();
+    float radius = 1.f;
+    bool flip_normals = false;  // true: normals point inwards
+};
+
+struct ShapeSample {
+    Vec3f p = Vec3f::Zero();
+    Vec3f n_geometric = Vec3f::UnitZ();
+    float pdf_area = 0.f;
+};
+
+class Shape {
+public:
+    Shape(TriangleMesh mesh, int bsdf, std::string id);
+    Shape(Sphere sphere, int bsdf, std::string id);
+
+    const std::variant<TriangleMesh, Sphere>& geometry() const { return geometry_; }
+    int bsdf() const { return bsdf_; }
+    int emitter() const { return emitter_; }
+    void set_emitter(int emitter) { emitter_ = emitter; }
+    const std::string& id() const { return id_; }
+    float surface_area() const { return area_; }
+    bool is_mesh() const { return std::holds_alternative<TriangleMesh>(geometry_); }
+
+    /// Full differential geometry at a hit found by the accelerator (primitive, barycentrics
+    /// (b1, b2) for triangles; the ray is used for the sphere's hit position).
+    SurfaceInteraction interaction(std::uint32_t primitive, const Vec2f& barycentric,
+                                   const Vec3f& ray_origin, const Vec3f& ray_direction,
+                                   float t) const;
+
+    /// Differential geometry at surface parameters (the manifold walk's move along a surface).
+    SurfaceInteraction interaction_at(std::uint32_t primitive, const Vec2f& surface_param) const;
+
+    /// A point uniformly distributed by area (pdf_area = 1/area).
+    ShapeSample sample_area(const Vec2f& u, float u_primitive) const;
+
+private:
+    std::variant<TriangleMesh, Sphere> geometry_;
+    Distribution1D triangle_areas_;
+    int bsdf_ = -1;
+    int emitter_ = -1;
+    float area_ = 0.f;
+    std::string id_;
+};
+
+}  // namespace gdmlt

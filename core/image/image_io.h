@@ -1,0 +1,47 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+// Image files. OpenEXR / OpenImageIO appear only in image_io.cpp.
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/image/image.h"
+
+namespace gdmlt {
+
+/// One layer of a multi-layer EXR. The main image has an empty name and channels "R","G","B";
+/// a named layer "primal" with channels {"R","G","B"} is stored as "primal.R", "primal.G", ...
+struct ExrLayer {
+    std::string name;
+    std::vector<std::string> channel_names;  // size == image.channels
+    Image image;
+};
+
+/// String attributes stored in the EXR header (effective config, seed, version, partial flag).
+using ExrAttributes = std::map<std::string, std::string>;
+
+/// Writes a multi-layer float32 EXR. All layers must have the same size. Writes to a temporary
+/// file in the same directory and renames it over `path`, so a crash never leaves half a file.
+/// Throws std::runtime_error on I/O failure.
+void write_exr(const std::string& path, const std::vector<ExrLayer>& layers,
+               const ExrAttributes& attributes = {});
+
+/// Reads every channel of an EXR, grouped into layers by the prefix before the last '.'.
+/// Channels without a prefix form the layer with the empty name. Optionally returns the
+/// string attributes of the header. Throws InputError (core/scene/scene_desc.h) naming the
+/// file when it cannot be read.
+std::vector<ExrLayer> read_exr(const std::string& path, ExrAttributes* attributes = nullptr);
+
+/// Writes an 8-bit sRGB PNG preview of a linear RGB image, scaled by 2^exposure_stops, clamped.
+/// Same temporary-file-and-rename rule.
+void write_png_srgb(const std::string& path, const Image& rgb, float exposure_stops = 0.f);
+
+/// Reads any image OpenImageIO understands (EXR, HDR, PNG, JPEG...) as float RGB(A) with the
+/// file's channel count; 8-bit sRGB files are returned as stored (no linearisation here).
+Image read_image(const std::string& path);
+
+/// sRGB transfer function (IEC 61966-2-1) and its inverse, on one channel.
+float srgb_to_linear(float v);
+float linear_to_srgb(float v);
+
+}  // namespace gdmlt

@@ -1,0 +1,40 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "core/sampling/distribution_1d.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace gdmlt {
+
+Distribution1D::Distribution1D(const std::vector<float>& weights)
+    : pmf_(weights.size(), 0.f), cdf_(weights.size() + 1, 0.0) {
+    for (std::size_t i = 0; i < weights.size(); ++i) {
+        const float w = weights[i];
+        const double clean = (std::isfinite(w) && w > 0.f) ? static_cast<double>(w) : 0.0;
+        cdf_[i + 1] = cdf_[i] + clean;
+    }
+    total_ = cdf_.back();
+    if (total_ <= 0.0) return;
+    for (std::size_t i = 0; i < weights.size(); ++i)
+        pmf_[i] = static_cast<float>((cdf_[i + 1] - cdf_[i]) / total_);
+    for (double& c : cdf_) c /= total_;
+    cdf_.back() = 1.0;
+}
+
+std::size_t Distribution1D::sample(float u, float* u_remapped) const {
+    const double target = static_cast<double>(u);
+    // First bin whose upper CDF value exceeds u; zero-weight bins are never chosen because
+    // their upper bound equals their lower bound.
+    const auto it = std::upper_bound(cdf_.begin() + 1, cdf_.end(), target);
+    std::size_t index = static_cast<std::size_t>(std::distance(cdf_.begin() + 1, it));
+    index = std::min(index, pmf_.size() - 1);
+    while (index > 0 && pmf_[index] == 0.f) --index;  // guard against u rounding onto a gap
+    if (u_remapped) {
+        const double width = cdf_[index + 1] - cdf_[index];
+        const double r = width > 0.0 ? (target - cdf_[index]) / width : 0.0;
+        *u_remapped = std::clamp(static_cast<float>(r), 0.f, 0x1.fffffep-1f);
+    }
+    return index;
+}
+
+}  // namespace gdmlt

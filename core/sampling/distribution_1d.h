@@ -1,0 +1,32 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+// Discrete distribution proportional to non-negative weights: sampling by binary search on the
+// CDF, with the sample re-used (rescaled) for a continuous choice inside the chosen bin.
+#include <cstddef>
+#include <vector>
+
+namespace gdmlt {
+
+class Distribution1D {
+public:
+    Distribution1D() = default;
+    /// Negative or non-finite weights are treated as zero. All-zero weights give an empty
+    /// distribution (valid() is false).
+    explicit Distribution1D(const std::vector<float>& weights);
+
+    bool valid() const { return total_ > 0.0; }
+    std::size_t size() const { return pmf_.size(); }
+    double total() const { return total_; }
+    float pmf(std::size_t index) const { return pmf_[index]; }
+
+    /// Chooses an index with probability pmf(index) from u in [0,1); `u_remapped` receives a
+    /// fresh uniform number in [0,1) for further use.
+    std::size_t sample(float u, float* u_remapped = nullptr) const;
+
+private:
+    std::vector<float> pmf_;
+    std::vector<double> cdf_;  // size()+1 entries, cdf_[0] = 0, cdf_.back() = 1
+    double total_ = 0.0;
+};
+
+}  // namespace gdmlt

@@ -1,0 +1,30 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "core/scene/scene_desc.h"
+
+namespace gdmlt {
+
+std::string FileLoc::to_string() const {
+    // Degrade gracefully when only part of the location is known (e.g. a file that could not be
+    // opened has no line), so that messages never show a meaningless ":0:0".
+    std::string text = file;
+    if (line > 0) {
+        text += ':' + std::to_string(line);
+        if (column > 0) text += ':' + std::to_string(column);
+    }
+    return text;
+}
+
+namespace {
+
+std::string format_input_error(const FileLoc& loc, const std::string& what) {
+    const std::string where = loc.to_string();
+    if (where.empty()) return "error: " + what;
+    return where + ": error: " + what;
+}
+
+}  // namespace
+
+InputError::InputError(const FileLoc& loc, const std::string& what)
+    : std::runtime_error(format_input_error(loc, what)) {}
+
+}  // namespace gdmlt

@@ -1,0 +1,202 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// BSDF sampling against pdf (chi-square), sample weights against eval/pdf, delta lobes against
+// the Fresnel equations, and no NaN anywhere.
+#include <gtest/gtest.h>
+
+#include "core/bsdf/bsdf.h"
+#include "core/bsdf/fresnel.h"
+#include "core/math/frame.h"
+#include "tests/support/chi2.h"
+
+namespace gdmlt {
+namespace {
+
+Vec3f direction_at(float theta_deg, float phi_deg = 30.f) {
+    const float theta = degrees_to_radians(theta_deg), phi = degrees_to_radians(phi_deg);
+    return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
+}
+
+const Vec2f kUv(0.25f, 0.5f);
+
+TEST(DiffuseBsdf, SamplesMatchPdfAtSeveralIncidentAngles) {
+    const Bsdf bsdf(DiffuseBsdf{Rgb(0.5f, 0.6f, 0.7f)});
+    const float angles[] = {0.f, 45.f, 89.9f};
+    for (float angle : angles) {
+        const Vec3f wo = direction_at(angle);
+        const auto r = test::chi2_sphere_test(
+            [&](Pcg32& rng) -> std::optional<Vec3f> {
+                const BsdfSample s = bsdf.sample(kUv, wo, rng.next_float(), {rng.next_float(), rng.next_float()});
+                if (!s.valid()) return std::nullopt;
+                return s.wi;
+            },
+            [&](const Vec3f& wi) { return static_cast<double>(bsdf.pdf(kUv, wo, wi)); });
+        EXPECT_GT(r.p_value, test::sidak_alpha(3)) << "theta_o = " << angle << ": " << r.summary;
+    }
+}
+
+TEST(DiffuseBsdf, SampleWeightEqualsEvalOverPdf) {
+    const Bsdf bsdf(DiffuseBsdf{Rgb(0.5f, 0.6f, 0.7f)});
+    Pcg32 rng(5, 2);
+    for (int i = 0; i < 1000; ++i) {
+        const Vec3f wo = direction_at(89.f * rng.next_float(), 360.f * rng.next_float());
+        const BsdfSample s = bsdf.sample(kUv, wo, rng.next_float(), {rng.next_float(), rng.next_float()});
+        if (!s.valid()) continue;
+        const Rgb expected = bsdf.eval(kUv, wo, s.wi) / bsdf.pdf(kUv, wo, s.wi);
+        EXPECT_NEAR(s.weight[0], expected[0], 1e-4f * expected[0]);
+        EXPECT_NEAR(s.weight[2], expected[2], 1e-4f * expected[2]);
+        EXPECT_FLOAT_EQ(s.pdf_solid_angle, bsdf.pdf(kUv, wo, s.wi));
+    }
+}
+
+TEST(DiffuseBsdf, IsBlackFromBehindUnlessTwoSided) {
+    const Vec3f wo_back = direction_at(120.f), wi_back = direction_at(150.f, 200.f);
+    const Bsdf one_sided(DiffuseBsdf{Rgb::Constant(0.8f)});
+    EXPECT_TRUE(is_black(one_sided.eval(kUv, wo_back, wi_back)));
+    EXPECT_FALSE(one_sided.sample(kUv, wo_back, 0.5f, {0.3f, 0.3f}).valid());
+    const Bsdf two = Bsdf::two_sided(DiffuseBsdf{Rgb::Constant(0.8f)}, std::nullopt);
+    const Rgb f = two.eval(kUv, wo_back, wi_back);
+    EXPECT_NEAR(f[0], 0.8f * kInvPi * std::abs(wi_back.z()), 1e-6f);
+    const BsdfSample s = two.sample(kUv, wo_back, 0.5f, {0.3f, 0.3f});
+    ASSERT_TRUE(s.valid());
+    EXPECT_LT(s.wi.z(), 0.f);  // sampled on the back side, where wo is
+}
+
+TEST(DielectricBsdf, ChoosesReflectionWithTheFresnelProbability) {
+    const Bsdf glass(DielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()});
+    for (float angle : {0.f, 60.f, 85.f}) {
+        const Vec3f wo = direction_at(angle);
+        const float F = fresnel_dielectric(wo.z(), 1.5f).reflectance;
+        Pcg32 rng(9, static_cast<std::uint64_t>(angle));
+        constexpr int kSamples = 40000;
+        int reflections = 0;
+        for (int i = 0; i < kSamples; ++i) {
+            const BsdfSample s = glass.sample(kUv, wo, rng.next_float(), {0.5f, 0.5f});
+            ASSERT_TRUE(s.valid());
+            ASSERT_TRUE(s.delta);
+            if (!s.transmission) {
+                ++reflections;
+                EXPECT_NEAR((s.wi - reflect_local(wo)).norm(), 0.f, 1e-6f);
+                EXPECT_FLOAT_EQ(s.weight[0], 1.f);
+            } else {
+                // Snell's law, and radiance scaled by 1/eta^2 on entering.
+                const float sin_i = std::sqrt(1.f - wo.z() * wo.z());
+                const float sin_t = std::sqrt(1.f - s.wi.z() * s.wi.z());
+                EXPECT_NEAR(sin_i, 1.5f * sin_t, 1e-5f);
+                EXPECT_LT(s.wi.z(), 0.f);
+                EXPECT_NEAR(s.weight[1], 1.f / (1.5f * 1.5f), 1e-6f);
+                EXPECT_FLOAT_EQ(s.eta, 1.5f);
+            }
+        }
+        // Binomial: 5 standard deviations.
+        const double sigma = std::sqrt(kSamples * F * (1.0 - F));
+        EXPECT_NEAR(reflections, kSamples * F, 5.0 * sigma + 1.0) << "theta = " << angle;
+    }
+}
+
+TEST(DielectricBsdf, TotallyReflectsBeyondTheCriticalAngleInside) {
+    const Bsdf glass(DielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()});
+    // Inside the glass (wo below the surface) at 60 degrees: sin 60 * 1.5 > 1.
+    const Vec3f wo = -direction_at(60.f);
+    for (float u : {0.f, 0.5f, 0.999f}) {
+        const BsdfSample s = glass.sample(kUv, wo, u, {0.5f, 0.5f});
+        ASSERT_TRUE(s.valid());
+        EXPECT_FALSE(s.transmission);
+        EXPECT_LT(s.wi.z(), 0.f);
+    }
+}
+
+TEST(DielectricBsdf, RefractionFromInsideScalesRadianceUp) {
+    const Bsdf glass(DielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()});
+    const Vec3f wo = -direction_at(10.f);
+    const BsdfSample s = glass.sample(kUv, wo, 0.999f, {0.5f, 0.5f});
+    ASSERT_TRUE(s.transmission);
+    EXPECT_NEAR(s.weight[0], 1.5f * 1.5f, 1e-5f);
+    EXPECT_NEAR(s.eta, 1.f / 1.5f, 1e-6f);
+}
+
+TEST(ThinDielectricBsdf, TransmitsStraightThroughWithoutScaling) {
+    const Bsdf thin(ThinDielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()});
+    const Vec3f wo = direction_at(30.f);
+    const BsdfSample s = thin.sample(kUv, wo, 0.999f, {0.5f, 0.5f});
+    ASSERT_TRUE(s.transmission);
+    EXPECT_NEAR((s.wi + wo).norm(), 0.f, 1e-6f);
+    EXPECT_FLOAT_EQ(s.weight[0], 1.f);
+    // Reflection probability includes the internal bounces: R' = 2R / (1 + R).
+    const float R = fresnel_dielectric(wo.z(), 1.5f).reflectance;
+    const BsdfSample reflect = thin.sample(kUv, wo, 2.f * R / (1.f + R) - 1e-4f, {0.5f, 0.5f});
+    EXPECT_FALSE(reflect.transmission);
+    const BsdfSample transmit = thin.sample(kUv, wo, 2.f * R / (1.f + R) + 1e-4f, {0.5f, 0.5f});
+    EXPECT_TRUE(transmit.transmission);
+}
+
+TEST(ConductorBsdf, NormalIncidenceReflectanceMatchesTheClosedForm) {
+    // At normal incidence F = ((n-1)^2 + k^2) / ((n+1)^2 + k^2).
+    const Rgb eta(0.2f, 0.9f, 1.1f), k(3.9f, 2.4f, 2.1f);
+    const Bsdf metal(ConductorBsdf{eta, k, false, Rgb::Ones()});
+    const BsdfSample s = metal.sample(kUv, Vec3f::UnitZ(), 0.5f, {0.5f, 0.5f});
+    ASSERT_TRUE(s.valid());
+    for (int c = 0; c < 3; ++c) {
+        const float expected = (sqr(eta[c] - 1.f) + k[c] * k[c]) / (sqr(eta[c] + 1.f) + k[c] * k[c]);
+        EXPECT_NEAR(s.weight[c], expected, 1e-5f);
+    }
+    EXPECT_NEAR((s.wi - Vec3f::UnitZ()).norm(), 0.f, 1e-6f);
+}
+
+TEST(ConductorBsdf, ReflectanceApproachesOneAtGrazingIncidence) {
+    EXPECT_NEAR(fresnel_conductor(1e-4f, 0.2f, 3.9f), 1.f, 1e-3f);
+    EXPECT_NEAR(fresnel_dielectric(1e-5f, 1.5f).reflectance, 1.f, 1e-3f);
+}
+
+TEST(Bsdf, NoNanOrInfForDegenerateDirections) {
+    std::vector<Bsdf> bsdfs = {Bsdf(DiffuseBsdf{Rgb::Constant(0.5f)}),
+                               Bsdf(DielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()}),
+                               Bsdf(DielectricBsdf{1.0001f, Rgb::Ones(), Rgb::Ones()}),
+                               Bsdf(DielectricBsdf{1.f / 1.5f, Rgb::Ones(), Rgb::Ones()}),
+                               Bsdf(ThinDielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()}),
+                               Bsdf(ConductorBsdf{Rgb(0.2f, 0.9f, 1.1f), Rgb(3.9f, 2.4f, 2.1f), false, Rgb::Ones()}),
+                               Bsdf::two_sided(DiffuseBsdf{Rgb::Constant(0.5f)}, std::nullopt)};
+    const std::vector<Vec3f> directions = {Vec3f::UnitZ(), -Vec3f::UnitZ(), Vec3f::UnitX(),
+                                           direction_at(89.999f), -direction_at(89.999f),
+                                           Vec3f(1.f, 0.f, 1e-30f).normalized(), Vec3f(0.f, 1.f, -0.f)};
+    for (const Bsdf& b : bsdfs)
+        for (const Vec3f& wo : directions) {
+            for (const Vec3f& wi : directions) {
+                EXPECT_TRUE(is_finite(b.eval(kUv, wo, wi)));
+                EXPECT_TRUE(std::isfinite(b.pdf(kUv, wo, wi)));
+            }
+            for (float u : {0.f, 0.5f, 0x1.fffffep-1f}) {
+                const BsdfSample s = b.sample(kUv, wo, u, {u, 1.f - u});
+                EXPECT_TRUE(is_finite(s.weight));
+                EXPECT_TRUE(s.wi.allFinite());
+                EXPECT_TRUE(std::isfinite(s.pdf_solid_angle));
+            }
+        }
+}
+
+TEST(Bsdf, ReportsItsRoughnessClass) {
+    EXPECT_EQ(Bsdf(DiffuseBsdf{}).roughness_class(), RoughnessClass::Diffuse);
+    EXPECT_EQ(Bsdf(DielectricBsdf{}).roughness_class(), RoughnessClass::Delta);
+    EXPECT_EQ(Bsdf(ConductorBsdf{}).roughness_class(), RoughnessClass::Delta);
+    EXPECT_EQ(classify_alpha(5e-4f), RoughnessClass::Delta);
+    EXPECT_EQ(classify_alpha(0.1f), RoughnessClass::Glossy);
+    EXPECT_EQ(classify_alpha(0.5f), RoughnessClass::Diffuse);
+}
+
+TEST(Frame, IsOrthonormalForAnyNormal) {
+    Pcg32 rng(4, 4);
+    for (int i = 0; i < 1000; ++i) {
+        Vec3f n(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f);
+        if (i == 0) n = -Vec3f::UnitZ();
+        n.normalize();
+        const Frame f = Frame::from_normal(n);
+        EXPECT_NEAR(f.s.dot(f.t), 0.f, 1e-5f);
+        EXPECT_NEAR(f.s.dot(f.n), 0.f, 1e-5f);
+        EXPECT_NEAR(f.s.norm(), 1.f, 1e-5f);
+        EXPECT_NEAR(f.t.norm(), 1.f, 1e-5f);
+        const Vec3f v(0.3f, -0.2f, 0.9f);
+        EXPECT_NEAR((f.to_world(f.to_local(v)) - v).norm(), 0.f, 1e-5f);
+    }
+}
+
+}  // namespace
+}  // namespace gdmlt

@@ -1,0 +1,230 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <numbers>
+#include <string>
+
+#include "core/geometry/mesh_io.h"
+
+namespace gdmlt {
+namespace {
+
+namespace fs = std::filesystem;
+
+const FileLoc kSceneLoc{"scene.xml", 7, 3};
+
+/// A fresh directory per test, removed afterwards.
+class TempDir {
+  public:
+    TempDir() {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        path_ = fs::temp_directory_path() /
+                ("gdmlt_mesh_io_" + std::to_string(::getpid()) + "_" + info->name());
+        fs::remove_all(path_);
+        fs::create_directories(path_);
+    }
+    ~TempDir() {
+        std::error_code ignored;
+        fs::remove_all(path_, ignored);
+    }
+    TempDir(const TempDir&) = delete;
+    TempDir& operator=(const TempDir&) = delete;
+
+    const fs::path& path() const { return path_; }
+
+    std::string write(const std::string& name, const std::string& contents) const {
+        const fs::path file = path_ / name;
+        std::ofstream(file, std::ios::binary) << contents;
+        return file.string();
+    }
+
+  private:
+    fs::path path_;
+};
+
+Vec3d triangle_cross(const TriangleMeshData& mesh, std::size_t t) {
+    const Vec3d a = mesh.positions[mesh.indices[3 * t]].cast<double>();
+    const Vec3d b = mesh.positions[mesh.indices[3 * t + 1]].cast<double>();
+    const Vec3d c = mesh.positions[mesh.indices[3 * t + 2]].cast<double>();
+    return (b - a).cross(c - a);
+}
+
+double total_area(const TriangleMeshData& mesh) {
+    double area = 0.0;
+    for (std::size_t t = 0; t < mesh.triangle_count(); ++t)
+        area += 0.5 * triangle_cross(mesh, t).norm();
+    return area;
+}
+
+/// Expects load_mesh to throw an InputError naming the scene location and the mesh file;
+/// returns the message.
+std::string load_error(const std::string& path) {
+    try {
+        load_mesh(path, kSceneLoc);
+    } catch (const InputError& error) {
+        const std::string message = error.what();
+        EXPECT_EQ(message.rfind("scene.xml:7:3:", 0), 0u) << message;
+        EXPECT_NE(message.find(path), std::string::npos) << message;
+        return message;
+    }
+    ADD_FAILURE() << "no InputError for " << path;
+    return {};
+}
+
+TEST(MeshIo, LoadsObjTriangles) {
+    const TempDir dir;
+    const std::string path = dir.write("tris.obj",
+                                       "# two triangles\n"
+                                       "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+                                       "vn 0 0 1\nvt 0 0\n"
+                                       "f 1/1/1 2/1/1 3/1/1\n"
+                                       "f 2 4 3\n");
+    const TriangleMeshData mesh = load_mesh(path, kSceneLoc);
+    EXPECT_EQ(mesh.positions.size(), 4u);
+    EXPECT_EQ(mesh.triangle_count(), 2u);
+    EXPECT_EQ(mesh.degenerate_triangles_dropped, 0u);
+    EXPECT_EQ(mesh.indices, (std::vector<std::uint32_t>{0, 1, 2, 1, 3, 2}));
+}
+
+TEST(MeshIo, TriangulatesAQuadKeepingItsWinding) {
+    const TempDir dir;
+    const std::string path =
+        dir.write("quad.obj", "v 0 0 0\nv 2 0 0\nv 2 1 0\nv 0 1 0\nf 1 2 3 4\n");
+    const TriangleMeshData mesh = load_mesh(path, kSceneLoc);
+    ASSERT_EQ(mesh.triangle_count(), 2u);
+    EXPECT_NEAR(total_area(mesh), 2.0, 1e-6);
+    for (std::size_t t = 0; t < 2; ++t) EXPECT_GT(triangle_cross(mesh, t).z(), 0.0);
+}
+
+TEST(MeshIo, TriangulatesANonConvexPolygonWithoutFolding) {
+    // An L shape listed from a vertex whose fan would cover the notch: the triangles must all
+    // face +z and add up to the polygon's area (3).
+    const TempDir dir;
+    const std::string path = dir.write("ell.off",
+                                       "OFF\n6 1 0\n"
+                                       "2 0 0\n2 1 0\n1 1 0\n1 2 0\n0 2 0\n0 0 0\n"
+                                       "6 0 1 2 3 4 5\n");
+    const TriangleMeshData mesh = load_mesh(path, kSceneLoc);
+    ASSERT_EQ(mesh.triangle_count(), 4u);
+    EXPECT_NEAR(total_area(mesh), 3.0, 1e-6);
+    for (std::size_t t = 0; t < 4; ++t) EXPECT_GT(triangle_cross(mesh, t).z(), 0.0) << t;
+}
+
+TEST(MeshIo, LoadsOffTriangles) {
+    const TempDir dir;
+    const std::string path = dir.write(
+        "tet.off", "OFF\n4 4 6\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");
+    const TriangleMeshData mesh = load_mesh(path, kSceneLoc);
+    EXPECT_EQ(mesh.triangle_count(), 4u);
+    EXPECT_TRUE(mesh.normals.empty());
+}
+
+TEST(MeshIo, KeepsPlyVertexNormalsAndUvs) {
+    const TempDir dir;
+    const std::string path = dir.write("uv.ply",
+                                       "ply\nformat ascii 1.0\n"
+                                       "element vertex 3\n"
+                                       "property float x\nproperty float y\nproperty float z\n"
+                                       "property float nx\nproperty float ny\nproperty float nz\n"
+                                       "property float u\nproperty float v\n"
+                                       "element face 1\n"
+                                       "property list uchar int vertex_indices\n"
+                                       "end_header\n"
+                                       "0 0 0 0 0 2 0 0\n"
+                                       "1 0 0 0 0 1 1 0\n"
+                                       "0 1 0 0 0 1 0 1\n"
+                                       "3 0 1 2\n");
+    const TriangleMeshData mesh = load_mesh(path, kSceneLoc);
+    ASSERT_EQ(mesh.triangle_count(), 1u);
+    ASSERT_EQ(mesh.normals.size(), 3u);
+    EXPECT_EQ(mesh.normals[0], Vec3f(0, 0, 1));  // normalised on load
+    ASSERT_EQ(mesh.uvs.size(), 3u);
+    EXPECT_EQ(mesh.uvs[1], Vec2f(1, 0));
+    EXPECT_EQ(mesh.uvs[2], Vec2f(0, 1));
+}
+
+TEST(MeshIo, LoadsBinaryPlyQuads) {
+    const TempDir dir;
+    std::string contents =
+        "ply\nformat binary_little_endian 1.0\nelement vertex 4\n"
+        "property float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar uint vertex_indices\nend_header\n";
+    const float positions[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    contents.append(reinterpret_cast<const char*>(positions), sizeof(positions));
+    const unsigned char count = 4;
+    const std::uint32_t quad[4] = {0, 1, 2, 3};
+    contents.append(reinterpret_cast<const char*>(&count), 1);
+    contents.append(reinterpret_cast<const char*>(quad), sizeof(quad));
+    const TriangleMeshData mesh = load_mesh(dir.write("quad.ply", contents), kSceneLoc);
+    EXPECT_EQ(mesh.triangle_count(), 2u);
+    EXPECT_NEAR(total_area(mesh), 1.0, 1e-6);
+}
+
+TEST(MeshIo, DropsAndCountsDegenerateTriangles) {
+    const TempDir dir;
+    const std::string path = dir.write("degenerate.obj",
+                                       "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\n"
+                                       "f 1 2 3\n"    // fine
+                                       "f 1 2 4\n"    // collinear: zero area
+                                       "f 1 1 3\n");  // repeated vertex
+    const TriangleMeshData mesh = load_mesh(path, kSceneLoc);
+    EXPECT_EQ(mesh.triangle_count(), 1u);
+    EXPECT_EQ(mesh.degenerate_triangles_dropped, 2u);
+}
+
+TEST(MeshIo, NanVertexInObjIsAnInputError) {
+    const TempDir dir;
+    load_error(dir.write("nan.obj", "v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"));
+}
+
+TEST(MeshIo, NanVertexInBinaryPlyIsAnInputErrorNamingTheVertex) {
+    const TempDir dir;
+    std::string contents =
+        "ply\nformat binary_little_endian 1.0\nelement vertex 3\n"
+        "property float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float positions[9] = {0, 0, 0, 1, 0, 0, 0, nan, 0};
+    contents.append(reinterpret_cast<const char*>(positions), sizeof(positions));
+    const unsigned char count = 3;
+    const std::int32_t triangle[3] = {0, 1, 2};
+    contents.append(reinterpret_cast<const char*>(&count), 1);
+    contents.append(reinterpret_cast<const char*>(triangle), sizeof(triangle));
+    const std::string message = load_error(dir.write("nan.ply", contents));
+    EXPECT_NE(message.find("vertex 2"), std::string::npos) << message;
+    EXPECT_NE(message.find("non-finite"), std::string::npos) << message;
+}
+
+TEST(MeshIo, MissingFileIsAnInputError) {
+    const TempDir dir;
+    load_error((dir.path() / "missing.obj").string());
+}
+
+TEST(MeshIo, FaceIndexOutOfRangeIsAnInputError) {
+    const TempDir dir;
+    load_error(dir.write("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n"));
+}
+
+TEST(MeshIo, VertexNormalsAreAngleWeighted) {
+    // Vertex 0 touches a right-angled triangle facing +z and a 45-degree one facing +x, both of
+    // area 1/2: angle weighting gives (pi/4, 0, pi/2) -> (1, 0, 2)/sqrt(5) (area weighting would
+    // give (1, 0, 1)/sqrt(2)).
+    TriangleMeshData mesh;
+    mesh.positions = {Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(0, 1, 0), Vec3f(0, 1, 1)};
+    mesh.indices = {0, 1, 2, 0, 2, 3};
+    const std::vector<Vec3f> normals = compute_vertex_normals(mesh);
+    ASSERT_EQ(normals.size(), 4u);
+    EXPECT_TRUE(normals[0].isApprox(Vec3f(1, 0, 2) / std::sqrt(5.f), 1e-5f)) << normals[0];
+    EXPECT_TRUE(normals[1].isApprox(Vec3f(0, 0, 1), 1e-5f)) << normals[1];
+    EXPECT_TRUE(normals[3].isApprox(Vec3f(1, 0, 0), 1e-5f)) << normals[3];
+    for (const Vec3f& n : normals) EXPECT_NEAR(n.norm(), 1.f, 1e-5f);
+}
+
+}  // namespace
+}  // namespace gdmlt

@@ -1,0 +1,106 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// Every warp's samples follow the pdf it claims (chi-square, alpha 1% Sidak-corrected over the
+// tests in this file, fixed seeds, 200k samples: enough that a pdf off by a few percent over a
+// region of 1% of the sphere fails).
+#include <gtest/gtest.h>
+
+#include "core/sampling/distribution_1d.h"
+#include "core/sampling/warp.h"
+#include "tests/support/chi2.h"
+
+namespace gdmlt {
+namespace {
+
+constexpr int kTestsInFile = 4;
+
+TEST(Warp, CosineHemisphereMatchesItsPdf) {
+    const auto r = test::chi2_sphere_test(
+        [](Pcg32& rng) -> std::optional<Vec3f> {
+            return warp::square_to_cosine_hemisphere({rng.next_float(), rng.next_float()});
+        },
+        [](const Vec3f& w) { return static_cast<double>(warp::square_to_cosine_hemisphere_pdf_solid_angle(w)); });
+    EXPECT_GT(r.p_value, test::sidak_alpha(kTestsInFile)) << r.summary;
+    EXPECT_NEAR(r.pdf_integral, 1.0, 1e-3);
+}
+
+TEST(Warp, UniformSphereMatchesItsPdf) {
+    const auto r = test::chi2_sphere_test(
+        [](Pcg32& rng) -> std::optional<Vec3f> {
+            return warp::square_to_uniform_sphere({rng.next_float(), rng.next_float()});
+        },
+        [](const Vec3f&) { return static_cast<double>(warp::square_to_uniform_sphere_pdf_solid_angle()); });
+    EXPECT_GT(r.p_value, test::sidak_alpha(kTestsInFile)) << r.summary;
+}
+
+TEST(Warp, UniformConeMatchesItsPdf) {
+    const float cos_max = 0.3f;
+    const auto r = test::chi2_sphere_test(
+        [&](Pcg32& rng) -> std::optional<Vec3f> {
+            return warp::square_to_uniform_cone({rng.next_float(), rng.next_float()}, cos_max);
+        },
+        [&](const Vec3f& w) {
+            return w.z() >= cos_max ? static_cast<double>(warp::square_to_uniform_cone_pdf_solid_angle(cos_max)) : 0.0;
+        });
+    EXPECT_GT(r.p_value, test::sidak_alpha(kTestsInFile)) << r.summary;
+}
+
+TEST(Warp, UniformTriangleCoversTheTriangleUniformly) {
+    // Map barycentrics of the triangle (0,0),(1,0),(0,1) to a 10x10 grid of cells; cells fully
+    // inside the triangle must receive equal counts (chi-square over the 45 interior cells).
+    constexpr int kCells = 10, kSamples = 200000;
+    std::vector<double> counts(kCells * kCells, 0.0);
+    Pcg32 rng(3, 5);
+    for (int i = 0; i < kSamples; ++i) {
+        const Vec2f b = warp::square_to_uniform_triangle({rng.next_float(), rng.next_float()});
+        ASSERT_GE(b.x(), 0.f);
+        ASSERT_GE(b.y(), 0.f);
+        ASSERT_LE(b.x() + b.y(), 1.f + 1e-6f);
+        const int cx = std::min(static_cast<int>(b.x() * kCells), kCells - 1);
+        const int cy = std::min(static_cast<int>(b.y() * kCells), kCells - 1);
+        counts[cy * kCells + cx] += 1.0;
+    }
+    double statistic = 0.0;
+    int interior = 0;
+    const double expected = kSamples * (1.0 / (kCells * kCells)) * 2.0;  // density 2 on the unit triangle
+    for (int cy = 0; cy < kCells; ++cy)
+        for (int cx = 0; cx + cy + 1 < kCells; ++cx) {
+            statistic += sqr(counts[cy * kCells + cx] - expected) / expected;
+            ++interior;
+        }
+    // 99.9% quantile of chi-square with 44 dof is about 78.7.
+    EXPECT_EQ(interior, 45);
+    EXPECT_LT(statistic, 78.7);
+}
+
+TEST(Distribution1D, ChoosesIndicesWithTheirProbabilityAndSkipsZeroWeights) {
+    const Distribution1D d({1.f, 0.f, 3.f, 0.f, 4.f});
+    ASSERT_TRUE(d.valid());
+    EXPECT_FLOAT_EQ(d.pmf(0), 1.f / 8.f);
+    EXPECT_FLOAT_EQ(d.pmf(1), 0.f);
+    std::vector<int> counts(5, 0);
+    Pcg32 rng(11, 1);
+    constexpr int kSamples = 80000;
+    for (int i = 0; i < kSamples; ++i) {
+        float remapped = -1.f;
+        const std::size_t k = d.sample(rng.next_float(), &remapped);
+        ASSERT_GE(remapped, 0.f);
+        ASSERT_LT(remapped, 1.f);
+        ++counts[k];
+    }
+    EXPECT_EQ(counts[1], 0);
+    EXPECT_EQ(counts[3], 0);
+    // Binomial standard deviation of the count of index 4: sqrt(N p (1-p)) ~ 141; 5 sigma.
+    EXPECT_NEAR(counts[4], kSamples * 0.5, 5 * 141.5);
+    EXPECT_NEAR(counts[0], kSamples * 0.125, 5 * std::sqrt(kSamples * 0.125 * 0.875));
+    // u at the very ends never selects a zero-weight bin.
+    EXPECT_EQ(d.sample(0.f), 0u);
+    EXPECT_EQ(d.sample(0x1.fffffep-1f), 4u);
+}
+
+TEST(Distribution1D, AllZeroWeightsGiveAnInvalidDistribution) {
+    EXPECT_FALSE(Distribution1D({0.f, 0.f}).valid());
+    EXPECT_FALSE(Distribution1D({std::nanf(""), -1.f}).valid());
+}
+
+}  // namespace
+}  // namespace gdmlt

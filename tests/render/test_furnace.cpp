@@ -1,0 +1,91 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// Furnace tests: scenes whose exact answer is known, rendered by the path tracer. Each test
+// states its seed and budget; tolerances are 5 standard errors of the image mean, the standard
+// error estimated from the per-pixel spread (pixels are independent), plus float round-off.
+#include <gtest/gtest.h>
+
+#include <tbb/global_control.h>
+
+#include "core/render/render_path.h"
+#include "tests/support/scene_fixtures.h"
+
+namespace gdmlt {
+namespace {
+
+RenderOutput render(const Scene& scene, int spp, std::uint64_t seed) {
+    RenderSettings settings;
+    settings.spp = spp;
+    settings.seed = seed;
+    settings.path.max_depth = -1;
+    settings.path.rr_depth = 5;
+    return render_path(scene, settings);
+}
+
+void expect_mean(const Image& image, const Rgb& expected) {
+    for (int c = 0; c < 3; ++c) {
+        const test::PixelStatistics s = test::pixel_statistics(image.pixels, c);
+        EXPECT_NEAR(s.mean, expected[c], 5.0 * s.standard_error + 1e-5 * expected[c])
+            << "channel " << c << ", standard error " << s.standard_error;
+        EXPECT_LT(s.standard_error, 0.02 * expected[c]) << "budget too small for a meaningful test";
+    }
+}
+
+TEST(Furnace, ConvexDiffuseSphereInConstantLightReflectsAlbedoTimesRadiance) {
+    // Every point of a convex sphere sees the environment over its whole hemisphere, so the
+    // reflected radiance is exactly albedo * L (one bounce; nothing inter-reflects).
+    const Scene scene = test::scene_from_xml(test::sensor_xml(16, 8.f, "0, 0, 5") + R"(
+        <emitter type="constant"><rgb name="radiance" value="1, 2, 0.5"/></emitter>
+        <shape type="sphere"><float name="radius" value="1"/>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0.3, 0.5, 0.8"/></bsdf></shape>)");
+    const RenderOutput out = render(scene, 64, 1);
+    expect_mean(out.image, Rgb(0.3f * 1.f, 0.5f * 2.f, 0.8f * 0.5f));
+}
+
+TEST(Furnace, ClosedEmittingDiffuseSphereSeenFromInsideSumsTheGeometricSeries) {
+    // Inside a closed sphere whose inner surface emits Le and reflects with albedo a, the
+    // radiance everywhere is Le (1 + a + a^2 + ...) = Le / (1 - a): tests inter-reflection,
+    // NEE + MIS on an area light, and Russian roulette (no depth limit).
+    const Scene scene = test::scene_from_xml(test::sensor_xml(16, 60.f, "0, 0, 0.5") + R"(
+        <shape type="sphere"><float name="radius" value="1"/><boolean name="flip_normals" value="true"/>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.25, 0.75"/></bsdf>
+            <emitter type="area"><rgb name="radiance" value="1, 1, 1"/></emitter></shape>)");
+    const RenderOutput out = render(scene, 64, 2);
+    expect_mean(out.image, Rgb(2.f, 1.f / 0.75f, 4.f));
+}
+
+TEST(Furnace, SmoothGlassSphereInConstantLightReturnsTheEnvironmentRadiance) {
+    // A lossless dielectric (IOR 1.5) in a uniform environment: every path ends in the
+    // environment with weight 1 (1/eta^2 on entering cancels eta^2 on leaving).
+    const Scene scene = test::scene_from_xml(test::sensor_xml(16, 20.f, "0, 0, 4") + R"(
+        <emitter type="constant"><rgb name="radiance" value="0.7, 0.7, 0.7"/></emitter>
+        <shape type="sphere"><float name="radius" value="1"/>
+            <bsdf type="dielectric"><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/></bsdf></shape>)");
+    const RenderOutput out = render(scene, 16, 3);
+    expect_mean(out.image, Rgb::Constant(0.7f));
+    EXPECT_EQ(out.stats.nonfinite_samples_dropped, 0u);
+}
+
+TEST(Determinism, SameSeedGivesTheSameImageAtOneAndTwoThreads) {
+    const Scene scene = test::scene_from_xml(test::sensor_xml(24, 40.f, "0, 0, 3.9") + R"(
+        <shape type="rectangle"><transform name="to_world"><translate value="0, 0, -1"/></transform></shape>
+        <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="-90"/><translate y="-1"/></transform></shape>
+        <shape type="sphere"><point name="center" value="0.3, -0.5, 0"/><float name="radius" value="0.4"/>
+            <bsdf type="dielectric"/></shape>
+        <shape type="rectangle"><transform name="to_world"><scale value="0.3"/><rotate x="1" angle="90"/><translate y="0.9"/></transform>
+            <emitter type="area"><rgb name="radiance" value="10, 10, 10"/></emitter></shape>)");
+    RenderOutput one, two;
+    {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+        one = render(scene, 8, 42);
+    }
+    {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+        two = render(scene, 8, 42);
+    }
+    EXPECT_TRUE(one.image == two.image);
+    const RenderOutput other_seed = render(scene, 8, 43);
+    EXPECT_FALSE(one.image == other_seed.image);
+}
+
+}  // namespace
+}  // namespace gdmlt

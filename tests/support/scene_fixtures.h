@@ -1,0 +1,23 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+// Scenes built in code for tests: a Mitsuba XML body wrapped into a <scene>, parsed and built.
+#include <string>
+
+#include "core/scene/scene.h"
+
+namespace gdmlt::test {
+
+/// Parses `<scene version="3.0.0">` + body + `</scene>` (named "test.xml" in messages).
+Scene scene_from_xml(const std::string& body, const BuildOptions& options = {});
+
+/// A sensor block: perspective camera at `origin` looking at the origin, square film.
+std::string sensor_xml(int resolution, float fov_deg, const std::string& origin, int spp = 16);
+
+/// Mean and standard error of the pixel means of a 3-channel image over channel `c`.
+struct PixelStatistics {
+    double mean = 0.0;
+    double standard_error = 0.0;
+};
+PixelStatistics pixel_statistics(const std::vector<float>& rgb, int channel);
+
+}  // namespace gdmlt::test
