@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The gdmlt command line: render, info, reconstruct. The only place that knows argv, output
 // paths, signals and terminals.
+#include <tbb/global_control.h>
+#include <tbb/info.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -11,14 +13,9 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <tbb/global_control.h>
-#include <tbb/info.h>
 
 #include "cli/progress.h"
-#if __has_include("cli/reconstruct_command.h")
 #include "cli/reconstruct_command.h"
-#define GDMLT_HAS_RECONSTRUCT 1
-#endif
 #include "core/image/image_io.h"
 #include "core/render/render_path.h"
 #include "core/scene/scene.h"
@@ -33,7 +30,9 @@ constexpr const char* kVersion = "0.1.0";
 
 std::atomic<bool> g_interrupted{false};  // set by SIGINT; the render polls it
 
-extern "C" void on_sigint(int) { g_interrupted.store(true); }
+extern "C" void on_sigint(int) {
+    g_interrupted.store(true);
+}
 
 struct RenderOptions {
     std::string scene_path;
@@ -102,13 +101,15 @@ int run_render(const RenderOptions& options) {
     const Scene scene = load_scene(options.scene_path, options.defines, options.lenient);
 
     // Effective configuration: defaults < scene file < command line.
-    const std::string integrator = options.integrator.empty() ? scene.integrator().type : options.integrator;
+    const std::string integrator =
+        options.integrator.empty() ? scene.integrator().type : options.integrator;
     if (integrator != "path")
         throw InputError("integrator '" + integrator + "' is not available yet (available: path)");
     RenderSettings settings;
     settings.spp = options.spp > 0 ? options.spp : scene.sampler().sample_count;
     settings.time_budget_s = options.time_s;
-    if (options.time_s > 0.0 && options.spp == 0) settings.spp = std::numeric_limits<int>::max() / 2;
+    if (options.time_s > 0.0 && options.spp == 0)
+        settings.spp = std::numeric_limits<int>::max() / 2;
     settings.seed = options.seed.value_or(scene.sampler().seed);
     settings.path.max_depth = options.max_depth.value_or(scene.integrator().max_depth);
     settings.path.rr_depth = scene.integrator().rr_depth;
@@ -117,53 +118,60 @@ int run_render(const RenderOptions& options) {
         throw InputError("--max-depth must be -1 or at least 1");
 
     const int threads = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                              static_cast<std::size_t>(threads));
 
-    json config = {{"scene", options.scene_path},
-                   {"integrator", integrator},
-                   {"spp", options.time_s > 0.0 && options.spp == 0 ? json(nullptr) : json(settings.spp)},
-                   {"time_budget_s", settings.time_budget_s},
-                   {"seed", settings.seed},
-                   {"max_depth", settings.path.max_depth},
-                   {"rr_depth", settings.path.rr_depth},
-                   {"hide_emitters", settings.path.hide_emitters},
-                   {"threads", threads},
-                   {"defines", options.defines},
-                   {"version", kVersion}};
+    json config = {
+        {"scene", options.scene_path},
+        {"integrator", integrator},
+        {"spp", options.time_s > 0.0 && options.spp == 0 ? json(nullptr) : json(settings.spp)},
+        {"time_budget_s", settings.time_budget_s},
+        {"seed", settings.seed},
+        {"max_depth", settings.path.max_depth},
+        {"rr_depth", settings.path.rr_depth},
+        {"hide_emitters", settings.path.hide_emitters},
+        {"threads", threads},
+        {"defines", options.defines},
+        {"version", kVersion}};
 
     const Film& film = scene.camera().film();
     if (!options.quiet)
         std::cerr << "gdmlt: rendering " << options.scene_path << " (" << film.crop_width << "x"
                   << film.crop_height << ", " << integrator << ", "
-                  << (options.time_s > 0.0 ? std::to_string(options.time_s) + " s" : std::to_string(settings.spp) + " spp")
+                  << (options.time_s > 0.0 ? std::to_string(options.time_s) + " s"
+                                           : std::to_string(settings.spp) + " spp")
                   << ", " << threads << " threads, seed " << settings.seed << ")\n";
 
     g_interrupted.store(false);
     std::signal(SIGINT, on_sigint);
     ProgressBar bar(isatty(STDERR_FILENO) != 0, options.quiet);
-    const RenderOutput out = render_path(scene, settings, &g_interrupted,
-                                         [&](const RenderProgress& p) { bar.update(p.fraction, p.samples, p.elapsed_s); });
+    const RenderOutput out = render_path(
+        scene, settings, &g_interrupted,
+        [&](const RenderProgress& p) { bar.update(p.fraction, p.samples, p.elapsed_s); });
     std::signal(SIGINT, SIG_DFL);
     bar.finish(out.stats.interrupted);
 
     const RenderStats& s = out.stats;
-    json stats = {{"config", config},
-                  {"partial", s.interrupted},
-                  {"render_s", s.render_s},
-                  {"samples", s.samples},
-                  {"spp_completed", s.spp_completed},
-                  {"passes", s.passes},
-                  {"samples_per_s", s.render_s > 0 ? static_cast<double>(s.samples) / s.render_s : 0.0},
-                  {"rays", {{"camera", s.counters.camera_rays},
-                            {"bounce", s.counters.bounce_rays},
-                            {"shadow", s.counters.shadow_rays},
-                            {"total", s.counters.rays()},
-                            {"per_s", s.render_s > 0 ? static_cast<double>(s.counters.rays()) / s.render_s : 0.0}}},
-                  {"nonfinite_samples_dropped", s.nonfinite_samples_dropped},
-                  {"scene", {{"features", features_json(scene.features())}, {"counts", scene.counts()}}},
-                  {"machinery", {{"next_event_estimation", true},
-                                 {"manifold_solver", false},
-                                 {"why_manifold_off", "the path integrator never uses it"}}}};
+    json stats = {
+        {"config", config},
+        {"partial", s.interrupted},
+        {"render_s", s.render_s},
+        {"samples", s.samples},
+        {"spp_completed", s.spp_completed},
+        {"passes", s.passes},
+        {"samples_per_s", s.render_s > 0 ? static_cast<double>(s.samples) / s.render_s : 0.0},
+        {"rays",
+         {{"camera", s.counters.camera_rays},
+          {"bounce", s.counters.bounce_rays},
+          {"shadow", s.counters.shadow_rays},
+          {"total", s.counters.rays()},
+          {"per_s", s.render_s > 0 ? static_cast<double>(s.counters.rays()) / s.render_s : 0.0}}},
+        {"nonfinite_samples_dropped", s.nonfinite_samples_dropped},
+        {"scene", {{"features", features_json(scene.features())}, {"counts", scene.counts()}}},
+        {"machinery",
+         {{"next_event_estimation", true},
+          {"manifold_solver", false},
+          {"why_manifold_off", "the path integrator never uses it"}}}};
 
     ExrAttributes attributes;
     attributes["gdmlt/config"] = config.dump();
@@ -177,12 +185,15 @@ int run_render(const RenderOptions& options) {
     write_exr(output, {ExrLayer{"", {"R", "G", "B"}, out.image}}, attributes);
     const std::string png = std::filesystem::path(output).replace_extension(".png").string();
     write_png_srgb(png, out.image);
-    if (!options.stats_path.empty()) write_text_atomically(options.stats_path, stats.dump(2) + "\n");
+    if (!options.stats_path.empty())
+        write_text_atomically(options.stats_path, stats.dump(2) + "\n");
 
     if (!options.quiet)
-        std::cerr << "gdmlt: wrote " << output << " and " << png << (s.interrupted ? " (partial: interrupted)" : "")
-                  << "; " << s.samples << " samples in " << s.render_s << " s ("
-                  << (s.render_s > 0 ? static_cast<double>(s.samples) / s.render_s / 1e6 : 0.0) << " M samples/s)\n";
+        std::cerr << "gdmlt: wrote " << output << " and " << png
+                  << (s.interrupted ? " (partial: interrupted)" : "") << "; " << s.samples
+                  << " samples in " << s.render_s << " s ("
+                  << (s.render_s > 0 ? static_cast<double>(s.samples) / s.render_s / 1e6 : 0.0)
+                  << " M samples/s)\n";
     return s.interrupted ? 130 : 0;
 }
 
@@ -190,18 +201,24 @@ int run_info(const std::string& scene_path, const std::vector<std::string>& defi
     const Scene scene = load_scene(scene_path, defines, lenient);
     const auto bounds = scene.bounds();
     const Film& film = scene.camera().film();
-    json info = {{"scene", scene_path},
-                 {"counts", scene.counts()},
-                 {"bounds", {{"min", {bounds.min().x(), bounds.min().y(), bounds.min().z()}},
-                             {"max", {bounds.max().x(), bounds.max().y(), bounds.max().z()}}}},
-                 {"film", {{"width", film.width}, {"height", film.height},
-                           {"crop", {film.crop_offset_x, film.crop_offset_y, film.crop_width, film.crop_height}}}},
-                 {"integrator", {{"type", scene.integrator().type},
-                                 {"max_depth", scene.integrator().max_depth},
-                                 {"rr_depth", scene.integrator().rr_depth},
-                                 {"hide_emitters", scene.integrator().hide_emitters}}},
-                 {"sampler", {{"sample_count", scene.sampler().sample_count}, {"seed", scene.sampler().seed}}},
-                 {"features", features_json(scene.features())}};
+    json info = {
+        {"scene", scene_path},
+        {"counts", scene.counts()},
+        {"bounds",
+         {{"min", {bounds.min().x(), bounds.min().y(), bounds.min().z()}},
+          {"max", {bounds.max().x(), bounds.max().y(), bounds.max().z()}}}},
+        {"film",
+         {{"width", film.width},
+          {"height", film.height},
+          {"crop", {film.crop_offset_x, film.crop_offset_y, film.crop_width, film.crop_height}}}},
+        {"integrator",
+         {{"type", scene.integrator().type},
+          {"max_depth", scene.integrator().max_depth},
+          {"rr_depth", scene.integrator().rr_depth},
+          {"hide_emitters", scene.integrator().hide_emitters}}},
+        {"sampler",
+         {{"sample_count", scene.sampler().sample_count}, {"seed", scene.sampler().seed}}},
+        {"features", features_json(scene.features())}};
     std::cout << info.dump(2) << "\n";
     return 0;
 }
@@ -216,20 +233,30 @@ int main(int argc, char** argv) {
 
     RenderOptions render;
     CLI::App* render_cmd = app.add_subcommand("render", "Render a Mitsuba XML scene to EXR + PNG");
-    render_cmd->add_option("scene", render.scene_path, "Scene file (Mitsuba XML, version 0.6 or 3)")->required();
-    render_cmd->add_option("-o,--output", render.output, "Output EXR (a PNG preview is written beside it)");
-    render_cmd->add_option("-D,--define", render.defines, "Scene parameter name=value (overrides <default>)");
+    render_cmd->add_option("scene", render.scene_path, "Scene file (Mitsuba XML, version 0.6 or 3)")
+        ->required();
+    render_cmd->add_option("-o,--output", render.output,
+                           "Output EXR (a PNG preview is written beside it)");
+    render_cmd->add_option("-D,--define", render.defines,
+                           "Scene parameter name=value (overrides <default>)");
     render_cmd->add_option("--integrator", render.integrator, "path (default: the scene's)");
-    auto* spp_opt = render_cmd->add_option("--spp", render.spp, "Samples per pixel (default: the scene's)")
-                        ->check(CLI::PositiveNumber);
-    render_cmd->add_option("--time", render.time_s, "Time budget in seconds (with --spp: whichever ends first)")
+    auto* spp_opt =
+        render_cmd->add_option("--spp", render.spp, "Samples per pixel (default: the scene's)")
+            ->check(CLI::PositiveNumber);
+    render_cmd
+        ->add_option("--time", render.time_s,
+                     "Time budget in seconds (with --spp: whichever ends first)")
         ->check(CLI::PositiveNumber);
     (void)spp_opt;
-    render_cmd->add_option("-t,--threads", render.threads, "Threads (default: all cores)")->check(CLI::NonNegativeNumber);
-    render_cmd->add_option("--seed", render.seed, "Random seed (default: the scene's sampler seed)");
-    render_cmd->add_option("--max-depth", render.max_depth, "Longest path in segments, -1 = unbounded");
+    render_cmd->add_option("-t,--threads", render.threads, "Threads (default: all cores)")
+        ->check(CLI::NonNegativeNumber);
+    render_cmd->add_option("--seed", render.seed,
+                           "Random seed (default: the scene's sampler seed)");
+    render_cmd->add_option("--max-depth", render.max_depth,
+                           "Longest path in segments, -1 = unbounded");
     render_cmd->add_option("--stats", render.stats_path, "Write statistics JSON here");
-    render_cmd->add_flag("--lenient", render.lenient, "Unknown plugins/properties are warnings, not errors");
+    render_cmd->add_flag("--lenient", render.lenient,
+                         "Unknown plugins/properties are warnings, not errors");
     render_cmd->add_flag("-q,--quiet", render.quiet, "No progress output");
 
     std::string info_scene;
@@ -240,9 +267,7 @@ int main(int argc, char** argv) {
     info_cmd->add_option("-D,--define", info_defines, "Scene parameter name=value");
     info_cmd->add_flag("--lenient", info_lenient, "Unknown plugins/properties are warnings");
 
-#ifdef GDMLT_HAS_RECONSTRUCT
     add_reconstruct_command(app, exit_code);
-#endif
 
     try {
         app.parse(argc, argv);

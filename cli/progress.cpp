@@ -12,7 +12,8 @@ std::string format_seconds(double s) {
     if (s < 60.0)
         std::snprintf(buffer, sizeof buffer, "%.1fs", s);
     else
-        std::snprintf(buffer, sizeof buffer, "%dm%02ds", static_cast<int>(s) / 60, static_cast<int>(s) % 60);
+        std::snprintf(buffer, sizeof buffer, "%dm%02ds", static_cast<int>(s) / 60,
+                      static_cast<int>(s) % 60);
     return buffer;
 }
 }  // namespace
@@ -28,13 +29,14 @@ void ProgressBar::update(double fraction, std::uint64_t samples, double elapsed_
         std::string bar(static_cast<std::size_t>(filled), '+');
         bar.resize(kWidth, ' ');
         std::fprintf(stderr, "\r[%s] %5.1f%% (%s elapsed, ETA %s, %.2f M samples/s)", bar.c_str(),
-                     100.0 * fraction, format_seconds(elapsed_s).c_str(), format_seconds(eta).c_str(),
-                     rate / 1e6);
+                     100.0 * fraction, format_seconds(elapsed_s).c_str(),
+                     format_seconds(eta).c_str(), rate / 1e6);
         drawn_ = true;
     } else if (elapsed_s - last_line_s_ >= 10.0) {
         // A line every 10 s keeps logs readable.
-        std::fprintf(stderr, "progress: %.1f%% elapsed %s ETA %s %.2f M samples/s\n", 100.0 * fraction,
-                     format_seconds(elapsed_s).c_str(), format_seconds(eta).c_str(), rate / 1e6);
+        std::fprintf(stderr, "progress: %.1f%% elapsed %s ETA %s %.2f M samples/s\n",
+                     100.0 * fraction, format_seconds(elapsed_s).c_str(),
+                     format_seconds(eta).c_str(), rate / 1e6);
         last_line_s_ = elapsed_s;
     }
     std::fflush(stderr);

@@ -7,13 +7,13 @@
 namespace gdmlt {
 
 class ProgressBar {
-public:
+  public:
     ProgressBar(bool terminal, bool quiet) : terminal_(terminal), quiet_(quiet) {}
     /// fraction in [0,1]; called from a background thread.
     void update(double fraction, std::uint64_t samples, double elapsed_s);
     void finish(bool interrupted);
 
-private:
+  private:
     bool terminal_, quiet_;
     double last_line_s_ = -1e9;
     bool drawn_ = false;

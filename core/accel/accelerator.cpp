@@ -18,7 +18,8 @@ namespace {
 void throw_on_error(RTCDevice device, const char* what) {
     const RTCError error = rtcGetDeviceError(device);
     if (error != RTC_ERROR_NONE)
-        throw std::runtime_error(std::string("Embree error ") + std::to_string(error) + " in " + what);
+        throw std::runtime_error(std::string("Embree error ") + std::to_string(error) + " in " +
+                                 what);
 }
 
 }  // namespace

@@ -21,7 +21,7 @@ struct RayHit {
 };
 
 class Accelerator {
-public:
+  public:
     /// Builds the BVH over `shapes` (shape index = Embree geometry id). Immutable afterwards;
     /// queries are thread-safe.
     explicit Accelerator(const std::vector<Shape>& shapes);
@@ -35,7 +35,7 @@ public:
     /// World-space bounds of everything.
     Eigen::AlignedBox3f bounds() const { return bounds_; }
 
-private:
+  private:
     struct Impl;
     std::unique_ptr<Impl> impl_;
     Eigen::AlignedBox3f bounds_;

@@ -9,16 +9,16 @@
 namespace gdmlt {
 
 struct Film {
-    int width = 768;          // full film size in pixels
+    int width = 768;  // full film size in pixels
     int height = 576;
-    int crop_offset_x = 0;    // rendered window inside the film
+    int crop_offset_x = 0;  // rendered window inside the film
     int crop_offset_y = 0;
     int crop_width = 768;
     int crop_height = 576;
 };
 
 class PerspectiveCamera {
-public:
+  public:
     PerspectiveCamera() = default;
     /// `fov_deg` along `fov_axis` ("x", "y", "diagonal", "smaller", "larger").
     PerspectiveCamera(const Transform& world_from_camera, const Film& film, float fov_deg,
@@ -33,7 +33,7 @@ public:
     float tan_half_fov_x() const { return tan_half_fov_x_; }
     float tan_half_fov_y() const { return tan_half_fov_y_; }
 
-private:
+  private:
     Transform world_from_camera_;
     Film film_;
     Vec3f position_ = Vec3f::Zero();

@@ -10,16 +10,16 @@
 namespace gdmlt {
 
 struct SurfaceInteraction {
-    Vec3f p = Vec3f::Zero();           // world position, rebuilt from the surface parameters
+    Vec3f p = Vec3f::Zero();             // world position, rebuilt from the surface parameters
     Vec3f n_geometric = Vec3f::UnitZ();  // unit; orientation follows winding / flip_normals
-    Frame shading;                     // shading.n: interpolated (or geometric) normal
+    Frame shading;                       // shading.n: interpolated (or geometric) normal
     Vec3f dp_du = Vec3f::Zero(), dp_dv = Vec3f::Zero();
     Vec3f dn_du = Vec3f::Zero(), dn_dv = Vec3f::Zero();  // of the shading normal
-    Vec2f uv = Vec2f::Zero();           // texture coordinates
-    Vec2f surface_param = Vec2f::Zero();  // (u, v) the derivatives above refer to:
+    Vec2f uv = Vec2f::Zero();                            // texture coordinates
+    Vec2f surface_param = Vec2f::Zero();                 // (u, v) the derivatives above refer to:
                                           // barycentrics (b1, b2) on triangles, (phi/2pi,
                                           // theta/pi) on spheres
-    float t = kInfinity;                // ray distance
+    float t = kInfinity;  // ray distance
     std::int32_t shape = -1;
     std::uint32_t primitive = 0;
 

@@ -13,8 +13,8 @@ namespace gdmlt {
 /// Plain triangle soup in object space, as loaded: no transform applied.
 struct TriangleMeshData {
     std::vector<Vec3f> positions;
-    std::vector<Vec3f> normals;  // per vertex, unit length; empty when the mesh has none
-    std::vector<Vec2f> uvs;      // per vertex; empty when the mesh has none
+    std::vector<Vec3f> normals;          // per vertex, unit length; empty when the mesh has none
+    std::vector<Vec2f> uvs;              // per vertex; empty when the mesh has none
     std::vector<std::uint32_t> indices;  // 3 per triangle, counter-clockwise = front
     std::size_t degenerate_triangles_dropped = 0;
 

@@ -36,7 +36,8 @@ inline Ray spawn_ray(const Vec3f& p, const Vec3f& n_geometric, const Vec3f& dire
 inline Ray spawn_ray_to(const Vec3f& p, const Vec3f& n_geometric, const Vec3f& target,
                         const Vec3f& n_target) {
     const Vec3f origin = offset_position(p, n_geometric, target - p);
-    const Vec3f end = n_target.isZero() ? target : offset_position(target, n_target, origin - target);
+    const Vec3f end =
+        n_target.isZero() ? target : offset_position(target, n_target, origin - target);
     Vec3f d = end - origin;
     const float distance = d.norm();
     if (!(distance > 0.f)) return Ray{origin, n_geometric, 0.f};

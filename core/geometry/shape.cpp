@@ -135,7 +135,8 @@ ShapeSample Shape::sample_area(const Vec2f& u, float u_primitive) const {
     if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
         if (!triangle_areas_.valid()) return s;
         const auto triangle = static_cast<std::uint32_t>(triangle_areas_.sample(u_primitive));
-        const SurfaceInteraction si = mesh_interaction(*mesh, triangle, warp::square_to_uniform_triangle(u));
+        const SurfaceInteraction si =
+            mesh_interaction(*mesh, triangle, warp::square_to_uniform_triangle(u));
         s.p = si.p;
         s.n_geometric = si.n_geometric;
     } else {

@@ -36,7 +36,7 @@ struct ShapeSample {
 };
 
 class Shape {
-public:
+  public:
     Shape(TriangleMesh mesh, int bsdf, std::string id);
     Shape(Sphere sphere, int bsdf, std::string id);
 
@@ -60,7 +60,7 @@ public:
     /// A point uniformly distributed by area (pdf_area = 1/area).
     ShapeSample sample_area(const Vec2f& u, float u_primitive) const;
 
-private:
+  private:
     std::variant<TriangleMesh, Sphere> geometry_;
     Distribution1D triangle_areas_;
     int bsdf_ = -1;

@@ -244,11 +244,14 @@ void write_png_srgb(const std::string& path, const Image& rgb, float exposure_st
     rename_over(tmp, path);
 }
 
-Image read_image(const std::string& path) {
+Image read_image(const std::string& path) { return read_image(path, nullptr); }
+
+Image read_image(const std::string& path, ImageFileInfo* info) {
     if (!fs::exists(path)) throw InputError(path + ": file not found");
     auto in = OIIO::ImageInput::open(path);
     if (!in) throw InputError(path + ": cannot read image: " + OIIO::geterror());
     const OIIO::ImageSpec& spec = in->spec();
+    if (info) info->integer_format = !spec.format.is_floating_point();
     Image image(spec.width, spec.height, spec.nchannels);
     if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
         const std::string err = in->geterror();

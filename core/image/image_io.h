@@ -40,6 +40,16 @@ void write_png_srgb(const std::string& path, const Image& rgb, float exposure_st
 /// file's channel count; 8-bit sRGB files are returned as stored (no linearisation here).
 Image read_image(const std::string& path);
 
+/// What read_image found about a file's encoding.
+struct ImageFileInfo {
+    /// Integer pixel format (8/16-bit PNG, JPEG, TIFF...): values are display-encoded (sRGB)
+    /// by convention; float formats (EXR, HDR) are linear.
+    bool integer_format = false;
+};
+/// read_image, also reporting the file's encoding (for texture loading: bitmaps linearise
+/// integer formats unless asked not to, as Mitsuba's `raw=false` does).
+Image read_image(const std::string& path, ImageFileInfo* info);
+
 /// sRGB transfer function (IEC 61966-2-1) and its inverse, on one channel.
 float srgb_to_linear(float v);
 float linear_to_srgb(float v);

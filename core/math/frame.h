@@ -21,7 +21,9 @@ struct Frame {
     static Frame from_normal_and_tangent(const Vec3f& n, const Vec3f& dpdu);
 
     Vec3f to_local(const Vec3f& world) const { return {world.dot(s), world.dot(t), world.dot(n)}; }
-    Vec3f to_world(const Vec3f& local) const { return s * local.x() + t * local.y() + n * local.z(); }
+    Vec3f to_world(const Vec3f& local) const {
+        return s * local.x() + t * local.y() + n * local.z();
+    }
 };
 
 inline Frame Frame::from_normal(const Vec3f& n) {
@@ -47,8 +49,14 @@ inline Frame Frame::from_normal_and_tangent(const Vec3f& n, const Vec3f& dpdu) {
 }
 
 // Helpers on local directions (normal = +z).
-inline float cos_theta(const Vec3f& w) { return w.z(); }
-inline float abs_cos_theta(const Vec3f& w) { return std::abs(w.z()); }
-inline bool same_hemisphere(const Vec3f& a, const Vec3f& b) { return a.z() * b.z() > 0.f; }
+inline float cos_theta(const Vec3f& w) {
+    return w.z();
+}
+inline float abs_cos_theta(const Vec3f& w) {
+    return std::abs(w.z());
+}
+inline bool same_hemisphere(const Vec3f& a, const Vec3f& b) {
+    return a.z() * b.z() > 0.f;
+}
 
 }  // namespace gdmlt

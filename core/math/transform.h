@@ -21,8 +21,12 @@ struct Transform {
     Vec3d apply_normal(const Vec3d& n) const {
         return inverse.topLeftCorner<3, 3>().transpose() * n;
     }
-    Vec3f apply_point(const Vec3f& p) const { return apply_point(Vec3d(p.cast<double>())).cast<float>(); }
-    Vec3f apply_vector(const Vec3f& v) const { return apply_vector(Vec3d(v.cast<double>())).cast<float>(); }
+    Vec3f apply_point(const Vec3f& p) const {
+        return apply_point(Vec3d(p.cast<double>())).cast<float>();
+    }
+    Vec3f apply_vector(const Vec3f& v) const {
+        return apply_vector(Vec3d(v.cast<double>())).cast<float>();
+    }
     Vec3f apply_normal(const Vec3f& n) const {
         return apply_normal(Vec3d(n.cast<double>())).normalized().cast<float>();
     }

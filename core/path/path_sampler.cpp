@@ -30,9 +30,10 @@ Rgb sample_path_radiance(const Scene& scene, const Ray& camera_ray, SampleStream
 
         if (!si.valid()) {
             if (scene.has_environment() && count_emission) {
-                const float w = prev_delta ? 1.f
-                                           : power_heuristic(prev_pdf_bsdf,
-                                                             scene.pdf_environment_solid_angle(ray.direction));
+                const float w =
+                    prev_delta ? 1.f
+                               : power_heuristic(prev_pdf_bsdf,
+                                                 scene.pdf_environment_solid_angle(ray.direction));
                 radiance += throughput * scene.environment(ray.direction) * w;
             }
             break;
@@ -42,9 +43,10 @@ Rgb sample_path_radiance(const Scene& scene, const Ray& camera_ray, SampleStream
         if (count_emission) {
             const Rgb emitted = scene.emitted(si, wo_world);
             if (!is_black(emitted)) {
-                const float w = prev_delta ? 1.f
-                                           : power_heuristic(prev_pdf_bsdf,
-                                                             scene.pdf_emitter_solid_angle(prev_p, si));
+                const float w =
+                    prev_delta
+                        ? 1.f
+                        : power_heuristic(prev_pdf_bsdf, scene.pdf_emitter_solid_angle(prev_p, si));
                 radiance += throughput * emitted * w;
             }
         }
@@ -62,14 +64,15 @@ Rgb sample_path_radiance(const Scene& scene, const Ray& camera_ray, SampleStream
                 const Vec3f wi = si.shading.to_local(es.wi);
                 const Rgb f = bsdf.eval(si.uv, wo, wi);
                 if (!is_black(f)) {
-                    const Ray shadow = std::isinf(es.distance)
-                                           ? spawn_ray(si.p, si.n_geometric, es.wi)
-                                           : spawn_ray_to(si.p, si.n_geometric, es.p, es.n_geometric);
+                    const Ray shadow =
+                        std::isinf(es.distance)
+                            ? spawn_ray(si.p, si.n_geometric, es.wi)
+                            : spawn_ray_to(si.p, si.n_geometric, es.p, es.n_geometric);
                     ++counters.shadow_rays;
                     if (!scene.occluded(shadow)) {
-                        const float w = es.delta ? 1.f
-                                                 : power_heuristic(es.pdf_solid_angle,
-                                                                   bsdf.pdf(si.uv, wo, wi));
+                        const float w =
+                            es.delta ? 1.f
+                                     : power_heuristic(es.pdf_solid_angle, bsdf.pdf(si.uv, wo, wi));
                         radiance += throughput * f * es.radiance * (w / es.pdf_solid_angle);
                     }
                 }

@@ -14,7 +14,8 @@ Image FilmBuffer::mean() const {
     for (std::size_t i = 0; i < count_.size(); ++i) {
         if (count_[i] == 0) continue;
         const double inv = 1.0 / static_cast<double>(count_[i]);
-        for (int c = 0; c < 3; ++c) image.pixels[3 * i + c] = static_cast<float>(sum_[3 * i + c] * inv);
+        for (int c = 0; c < 3; ++c)
+            image.pixels[3 * i + c] = static_cast<float>(sum_[3 * i + c] * inv);
     }
     return image;
 }

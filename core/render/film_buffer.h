@@ -11,9 +11,11 @@
 namespace gdmlt {
 
 class FilmBuffer {
-public:
+  public:
     FilmBuffer(int width, int height)
-        : width_(width), height_(height), sum_(static_cast<std::size_t>(width) * height * 3, 0.0),
+        : width_(width),
+          height_(height),
+          sum_(static_cast<std::size_t>(width) * height * 3, 0.0),
           count_(static_cast<std::size_t>(width) * height, 0) {}
 
     int width() const { return width_; }
@@ -29,12 +31,14 @@ public:
     /// without counting would bias pixels upwards.
     void add_dropped(int x, int y) { ++count_[static_cast<std::size_t>(y) * width_ + x]; }
 
-    std::uint32_t count(int x, int y) const { return count_[static_cast<std::size_t>(y) * width_ + x]; }
+    std::uint32_t count(int x, int y) const {
+        return count_[static_cast<std::size_t>(y) * width_ + x];
+    }
     std::uint64_t total_count() const;
     /// Mean per pixel (zero where no sample landed).
     Image mean() const;
 
-private:
+  private:
     int width_, height_;
     std::vector<double> sum_;
     std::vector<std::uint32_t> count_;

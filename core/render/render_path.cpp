@@ -26,7 +26,7 @@ double seconds_since(Clock::time_point start) {
 
 /// Calls `report` every `interval_s` from a background thread until stopped.
 class ProgressReporter {
-public:
+  public:
     ProgressReporter(std::function<void()> report, double interval_s)
         : report_(std::move(report)), interval_(interval_s) {
         if (report_) thread_ = std::thread([this] { run(); });
@@ -41,10 +41,11 @@ public:
         if (thread_.joinable()) thread_.join();
     }
 
-private:
+  private:
     void run() {
         std::unique_lock<std::mutex> lock(mutex_);
-        while (!wake_.wait_for(lock, std::chrono::duration<double>(interval_), [this] { return stop_; }))
+        while (!wake_.wait_for(lock, std::chrono::duration<double>(interval_),
+                               [this] { return stop_; }))
             report_();
     }
     std::function<void()> report_;
@@ -76,17 +77,17 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
 
     const Clock::time_point start = Clock::now();
     const auto expected_samples = static_cast<double>(spp_budget) * width * height;
-    ProgressReporter reporter(
-        progress ? std::function<void()>([&] {
-            RenderProgress p;
-            p.samples = samples_done.load(std::memory_order_relaxed);
-            p.elapsed_s = seconds_since(start);
-            p.fraction = timed ? std::min(p.elapsed_s / settings.time_budget_s, 1.0)
-                               : static_cast<double>(p.samples) / expected_samples;
-            progress(p);
-        })
-                 : std::function<void()>(),
-        progress_interval_s);
+    ProgressReporter reporter(progress ? std::function<void()>([&] {
+                                  RenderProgress p;
+                                  p.samples = samples_done.load(std::memory_order_relaxed);
+                                  p.elapsed_s = seconds_since(start);
+                                  p.fraction =
+                                      timed ? std::min(p.elapsed_s / settings.time_budget_s, 1.0)
+                                            : static_cast<double>(p.samples) / expected_samples;
+                                  progress(p);
+                              })
+                                       : std::function<void()>(),
+                              progress_interval_s);
 
     auto cancelled = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
 
@@ -106,37 +107,45 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
         const int first_sample = spp_done;
         const Clock::time_point pass_start = Clock::now();
 
-        tbb::parallel_for(tbb::blocked_range<int>(0, tile_count), [&](const tbb::blocked_range<int>& range) {
-            PathCounters& local = counters.local();
-            for (int tile = range.begin(); tile != range.end(); ++tile) {
-                if (cancelled()) return;
-                const int x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
-                const int x1 = std::min(x0 + kTileSize, width), y1 = std::min(y0 + kTileSize, height);
-                for (int y = y0; y < y1; ++y) {
-                    for (int x = x0; x < x1; ++x) {
-                        const int film_x = x + film.crop_offset_x, film_y = y + film.crop_offset_y;
-                        const auto pixel = static_cast<std::uint64_t>(film_y) * film.width + film_x;
-                        for (int s = first_sample; s < first_sample + pass_spp; ++s) {
-                            // One stream per (seed, pixel, sample index): the image does not
-                            // depend on the thread count, the tiling or the pass split.
-                            IndependentStream stream(derive_stream(settings.seed, pixel, static_cast<std::uint64_t>(s)));
-                            const Vec2f jitter = stream.next_2d();
-                            const Ray ray = scene.camera().generate_ray(
-                                Vec2f(static_cast<float>(film_x) + jitter.x(), static_cast<float>(film_y) + jitter.y()));
-                            const Rgb L = sample_path_radiance(scene, ray, stream, settings.path, local);
-                            if (is_finite(L)) {
-                                buffer.add(x, y, L);
-                            } else {
-                                buffer.add_dropped(x, y);
-                                ++dropped.local();
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, tile_count), [&](const tbb::blocked_range<int>& range) {
+                PathCounters& local = counters.local();
+                for (int tile = range.begin(); tile != range.end(); ++tile) {
+                    if (cancelled()) return;
+                    const int x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
+                    const int x1 = std::min(x0 + kTileSize, width),
+                              y1 = std::min(y0 + kTileSize, height);
+                    for (int y = y0; y < y1; ++y) {
+                        for (int x = x0; x < x1; ++x) {
+                            const int film_x = x + film.crop_offset_x,
+                                      film_y = y + film.crop_offset_y;
+                            const auto pixel =
+                                static_cast<std::uint64_t>(film_y) * film.width + film_x;
+                            for (int s = first_sample; s < first_sample + pass_spp; ++s) {
+                                // One stream per (seed, pixel, sample index): the image does not
+                                // depend on the thread count, the tiling or the pass split.
+                                IndependentStream stream(derive_stream(
+                                    settings.seed, pixel, static_cast<std::uint64_t>(s)));
+                                const Vec2f jitter = stream.next_2d();
+                                const Ray ray = scene.camera().generate_ray(
+                                    Vec2f(static_cast<float>(film_x) + jitter.x(),
+                                          static_cast<float>(film_y) + jitter.y()));
+                                const Rgb L =
+                                    sample_path_radiance(scene, ray, stream, settings.path, local);
+                                if (is_finite(L)) {
+                                    buffer.add(x, y, L);
+                                } else {
+                                    buffer.add_dropped(x, y);
+                                    ++dropped.local();
+                                }
                             }
                         }
                     }
+                    samples_done.fetch_add(
+                        static_cast<std::uint64_t>((x1 - x0) * (y1 - y0)) * pass_spp,
+                        std::memory_order_relaxed);
                 }
-                samples_done.fetch_add(static_cast<std::uint64_t>((x1 - x0) * (y1 - y0)) * pass_spp,
-                                       std::memory_order_relaxed);
-            }
-        });
+            });
         if (cancelled()) break;
         spp_done += pass_spp;
         ++stats.passes;

@@ -12,7 +12,7 @@
 namespace gdmlt {
 
 struct RenderSettings {
-    int spp = 16;               // samples per pixel (upper bound when time_budget_s > 0)
+    int spp = 16;                // samples per pixel (upper bound when time_budget_s > 0)
     double time_budget_s = 0.0;  // 0: no time limit; otherwise stop after the pass that exceeds it
     std::uint64_t seed = 0;
     PathSamplerSettings path;

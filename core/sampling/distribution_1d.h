@@ -8,7 +8,7 @@
 namespace gdmlt {
 
 class Distribution1D {
-public:
+  public:
     Distribution1D() = default;
     /// Negative or non-finite weights are treated as zero. All-zero weights give an empty
     /// distribution (valid() is false).
@@ -23,7 +23,7 @@ public:
     /// fresh uniform number in [0,1) for further use.
     std::size_t sample(float u, float* u_remapped = nullptr) const;
 
-private:
+  private:
     std::vector<float> pmf_;
     std::vector<double> cdf_;  // size()+1 entries, cdf_[0] = 0, cdf_.back() = 1
     double total_ = 0.0;

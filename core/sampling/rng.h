@@ -19,13 +19,14 @@ constexpr std::uint64_t mix_bits(std::uint64_t v) {
 }
 
 /// A stream key from a global seed and one or two identifiers (pixel index, pass, chain id).
-constexpr std::uint64_t derive_stream(std::uint64_t seed, std::uint64_t id_a, std::uint64_t id_b = 0) {
-    return mix_bits(mix_bits(seed ^ 0x9e3779b97f4a7c15ULL) ^ mix_bits(id_a + 0x632be59bd9b4e019ULL) ^
-                    (mix_bits(id_b) << 1));
+constexpr std::uint64_t derive_stream(std::uint64_t seed, std::uint64_t id_a,
+                                      std::uint64_t id_b = 0) {
+    return mix_bits(mix_bits(seed ^ 0x9e3779b97f4a7c15ULL) ^
+                    mix_bits(id_a + 0x632be59bd9b4e019ULL) ^ (mix_bits(id_b) << 1));
 }
 
 class Pcg32 {
-public:
+  public:
     Pcg32() { seed(0x853c49e6748fea9bULL, 0xda3e39cb94b95bdbULL); }
     Pcg32(std::uint64_t initial_state, std::uint64_t stream_id) { seed(initial_state, stream_id); }
 
@@ -55,7 +56,7 @@ public:
 
     bool operator==(const Pcg32&) const = default;
 
-private:
+  private:
     static constexpr std::uint64_t kMultiplier = 0x5851f42d4c957f2dULL;
     std::uint64_t state_ = 0;
     std::uint64_t increment_ = 0;

@@ -10,7 +10,7 @@
 namespace gdmlt {
 
 class SampleStream {
-public:
+  public:
     virtual ~SampleStream() = default;
     /// Next uniform number in [0, 1).
     virtual float next_1d() = 0;
@@ -23,11 +23,11 @@ public:
 
 /// Independent uniform samples from a PCG32 stream.
 class IndependentStream final : public SampleStream {
-public:
+  public:
     explicit IndependentStream(std::uint64_t stream_key) : rng_(stream_key, mix_bits(stream_key)) {}
     float next_1d() override { return rng_.next_float(); }
 
-private:
+  private:
     Pcg32 rng_;
 };
 

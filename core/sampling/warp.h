@@ -20,7 +20,9 @@ inline Vec2f square_to_uniform_disk_concentric(const Vec2f& u) {
     }
     return {r * std::cos(phi), r * std::sin(phi)};
 }
-inline float square_to_uniform_disk_pdf_area() { return kInvPi; }
+inline float square_to_uniform_disk_pdf_area() {
+    return kInvPi;
+}
 
 /// Cosine-weighted hemisphere around +z (Malley's method).
 inline Vec3f square_to_cosine_hemisphere(const Vec2f& u) {
@@ -38,7 +40,9 @@ inline Vec3f square_to_uniform_sphere(const Vec2f& u) {
     const float phi = 2.f * kPi * u.x();
     return {r * std::cos(phi), r * std::sin(phi), z};
 }
-inline float square_to_uniform_sphere_pdf_solid_angle() { return 0.25f * kInvPi; }
+inline float square_to_uniform_sphere_pdf_solid_angle() {
+    return 0.25f * kInvPi;
+}
 
 /// Uniform in the cone of directions around +z with cos(theta) >= cos_theta_max.
 inline Vec3f square_to_uniform_cone(const Vec2f& u, float cos_theta_max) {

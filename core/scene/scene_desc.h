@@ -35,7 +35,7 @@ struct FileLoc {
 /// An error in the user's input (scene file, mesh file, command line). Its message already
 /// names the file and line; the CLI prints it and exits with code 2.
 class InputError : public std::runtime_error {
-public:
+  public:
     InputError(const FileLoc& loc, const std::string& what);
     explicit InputError(const std::string& what) : std::runtime_error(what) {}
 };

@@ -18,7 +18,9 @@ TEST(Warp, CosineHemisphereMatchesItsPdf) {
         [](Pcg32& rng) -> std::optional<Vec3f> {
             return warp::square_to_cosine_hemisphere({rng.next_float(), rng.next_float()});
         },
-        [](const Vec3f& w) { return static_cast<double>(warp::square_to_cosine_hemisphere_pdf_solid_angle(w)); });
+        [](const Vec3f& w) {
+            return static_cast<double>(warp::square_to_cosine_hemisphere_pdf_solid_angle(w));
+        });
     EXPECT_GT(r.p_value, test::sidak_alpha(kTestsInFile)) << r.summary;
     EXPECT_NEAR(r.pdf_integral, 1.0, 1e-3);
 }
@@ -28,7 +30,9 @@ TEST(Warp, UniformSphereMatchesItsPdf) {
         [](Pcg32& rng) -> std::optional<Vec3f> {
             return warp::square_to_uniform_sphere({rng.next_float(), rng.next_float()});
         },
-        [](const Vec3f&) { return static_cast<double>(warp::square_to_uniform_sphere_pdf_solid_angle()); });
+        [](const Vec3f&) {
+            return static_cast<double>(warp::square_to_uniform_sphere_pdf_solid_angle());
+        });
     EXPECT_GT(r.p_value, test::sidak_alpha(kTestsInFile)) << r.summary;
 }
 
@@ -39,7 +43,9 @@ TEST(Warp, UniformConeMatchesItsPdf) {
             return warp::square_to_uniform_cone({rng.next_float(), rng.next_float()}, cos_max);
         },
         [&](const Vec3f& w) {
-            return w.z() >= cos_max ? static_cast<double>(warp::square_to_uniform_cone_pdf_solid_angle(cos_max)) : 0.0;
+            return w.z() >= cos_max
+                       ? static_cast<double>(warp::square_to_uniform_cone_pdf_solid_angle(cos_max))
+                       : 0.0;
         });
     EXPECT_GT(r.p_value, test::sidak_alpha(kTestsInFile)) << r.summary;
 }
@@ -61,7 +67,8 @@ TEST(Warp, UniformTriangleCoversTheTriangleUniformly) {
     }
     double statistic = 0.0;
     int interior = 0;
-    const double expected = kSamples * (1.0 / (kCells * kCells)) * 2.0;  // density 2 on the unit triangle
+    const double expected =
+        kSamples * (1.0 / (kCells * kCells)) * 2.0;  // density 2 on the unit triangle
     for (int cy = 0; cy < kCells; ++cy)
         for (int cx = 0; cx + cy + 1 < kCells; ++cx) {
             statistic += sqr(counts[cy * kCells + cx] - expected) / expected;

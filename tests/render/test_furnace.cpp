@@ -3,7 +3,6 @@
 // states its seed and budget; tolerances are 5 standard errors of the image mean, the standard
 // error estimated from the per-pixel spread (pixels are independent), plus float round-off.
 #include <gtest/gtest.h>
-
 #include <tbb/global_control.h>
 
 #include "core/render/render_path.h"

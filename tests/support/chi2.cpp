@@ -42,8 +42,8 @@ Chi2Result chi2_sphere_test(const std::function<std::optional<Vec3f>(Pcg32&)>& s
                 const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
                 for (int b = 0; b < m; ++b) {
                     const double phi = (iphi * m + b + 0.5) * dphi;
-                    const Vec3f w(static_cast<float>(r * std::cos(phi)), static_cast<float>(r * std::sin(phi)),
-                                  static_cast<float>(z));
+                    const Vec3f w(static_cast<float>(r * std::cos(phi)),
+                                  static_cast<float>(r * std::sin(phi)), static_cast<float>(z));
                     mass += pdf(w) * dz * dphi;
                 }
             }
@@ -56,7 +56,8 @@ Chi2Result chi2_sphere_test(const std::function<std::optional<Vec3f>(Pcg32&)>& s
     // Pool small bins (sorted by expected count) until each pooled group expects >= 5.
     std::vector<std::size_t> order(bin_count + 1);
     for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return expected[a] < expected[b]; });
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return expected[a] < expected[b]; });
     Chi2Result result;
     result.pdf_integral = integral;
     double pooled_observed = 0.0, pooled_expected = 0.0;

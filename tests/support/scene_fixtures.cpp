@@ -20,7 +20,8 @@ std::string sensor_xml(int resolution, float fov_deg, const std::string& origin,
            "<sampler type=\"independent\"><integer name=\"sample_count\" value=\"" +
            std::to_string(spp) +
            "\"/></sampler><film type=\"hdrfilm\"><integer name=\"width\" value=\"" + res +
-           "\"/><integer name=\"height\" value=\"" + res + "\"/><rfilter type=\"box\"/></film></sensor>";
+           "\"/><integer name=\"height\" value=\"" + res +
+           "\"/><rfilter type=\"box\"/></film></sensor>";
 }
 
 PixelStatistics pixel_statistics(const std::vector<float>& rgb, int channel) {

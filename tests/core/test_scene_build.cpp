@@ -1,0 +1,177 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// SceneDesc -> Scene: every malformed input gives a clear error with file and line; shapes get
+// Mitsuba's geometry; features say what occurs.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/scene/scene.h"
+#include "tests/support/scene_fixtures.h"
+
+namespace gdmlt {
+namespace {
+
+/// Builds and returns the error message ("" when it built).
+std::string build_error(const std::string& body, bool lenient = false) {
+    try {
+        BuildOptions options;
+        options.lenient = lenient;
+        test::scene_from_xml(body, options);
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+const std::string kLight = R"(<shape type="rectangle"><emitter type="area"/></shape>)";
+
+TEST(SceneBuild, UnknownPluginIsAnErrorWithFileAndLine) {
+    const std::string message = build_error("\n<shape type=\"teapot\"/>");
+    EXPECT_NE(message.find("test.xml:3"), std::string::npos) << message;
+    EXPECT_NE(message.find("teapot"), std::string::npos) << message;
+}
+
+TEST(SceneBuild, UnknownPluginIsOnlyAWarningWhenLenient) {
+    EXPECT_EQ(build_error(kLight + "<shape type=\"teapot\"/>", true), "");
+}
+
+TEST(SceneBuild, UnknownPropertyIsAnErrorNamingIt) {
+    const std::string message = build_error(
+        "<bsdf type=\"diffuse\" id=\"a\">\n<float name=\"roughnes\" value=\"0.1\"/></bsdf>" +
+        kLight);
+    EXPECT_NE(message.find("roughnes"), std::string::npos) << message;
+    EXPECT_NE(message.find("test.xml:3"), std::string::npos) << message;
+}
+
+TEST(SceneBuild, WrongPropertyTypeIsAnError) {
+    const std::string message = build_error(
+        R"(<integrator type="path"><string name="max_depth" value="deep"/></integrator>)" + kLight);
+    EXPECT_NE(message.find("max_depth"), std::string::npos) << message;
+    EXPECT_NE(message.find("integer"), std::string::npos) << message;
+}
+
+TEST(SceneBuild, MissingMeshFileIsAnErrorNamingTheFile) {
+    const std::string message = build_error(
+        R"(<shape type="obj"><string name="filename" value="nowhere/missing.obj"/></shape>)");
+    EXPECT_NE(message.find("missing.obj"), std::string::npos) << message;
+    EXPECT_NE(message.find("test.xml:2"), std::string::npos) << message;
+}
+
+TEST(SceneBuild, NanVertexIsAnError) {
+    const auto dir = std::filesystem::temp_directory_path() / "gdmlt_test_scene_build";
+    std::filesystem::create_directories(dir);
+    const auto path = dir / "nan.obj";
+    std::ofstream(path) << "v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n";
+    const std::string message = build_error(
+        "<shape type=\"obj\"><string name=\"filename\" value=\"" + path.string() + "\"/></shape>");
+    EXPECT_NE(message.find("nan.obj"), std::string::npos) << message;
+    std::filesystem::remove_all(dir);
+}
+
+TEST(SceneBuild, ZeroAreaLightIsAnError) {
+    const std::string message = build_error(
+        R"(<shape type="disk"><transform name="to_world"><scale value="1e-25"/></transform>
+           <emitter type="area"/></shape>)");
+    EXPECT_NE(message.find("zero area"), std::string::npos) << message;
+}
+
+TEST(SceneBuild, NegativeReflectanceIsAnError) {
+    const std::string message = build_error(
+        R"(<bsdf type="diffuse" id="b"><rgb name="reflectance" value="0.5, -0.1, 0.5"/></bsdf>)" +
+        kLight);
+    EXPECT_NE(message.find("negative"), std::string::npos) << message;
+}
+
+TEST(SceneBuild, NonUniformScaleOfASphereIsAnError) {
+    const std::string message = build_error(
+        R"(<shape type="sphere"><transform name="to_world"><scale value="1, 2, 1"/></transform></shape>)" +
+        kLight);
+    EXPECT_NE(message.find("similarity"), std::string::npos) << message;
+}
+
+TEST(SceneBuild, RectangleFacesAlongItsTransformedNormal) {
+    // Mitsuba's rectangle spans [-1,1]^2 at z = 0 facing +z; rotating by -90 degrees about x
+    // turns it into a floor at y = -1 facing +y.
+    const Scene scene = test::scene_from_xml(R"(
+        <shape type="rectangle"><transform name="to_world">
+            <rotate x="1" angle="-90"/><translate y="-1"/></transform></shape>)");
+    const SurfaceInteraction si =
+        scene.intersect(Ray{Vec3f(0.2f, 3.f, 0.1f), -Vec3f::UnitY(), kInfinity});
+    ASSERT_TRUE(si.valid());
+    EXPECT_NEAR(si.p.y(), -1.f, 1e-6f);
+    EXPECT_NEAR(si.n_geometric.y(), 1.f, 1e-6f);
+    EXPECT_NEAR(si.shading.n.y(), 1.f, 1e-6f);
+    EXPECT_NEAR(scene.shapes()[0].surface_area(), 4.f, 1e-5f);
+}
+
+TEST(SceneBuild, CubeIsClosedWithOutwardNormals) {
+    const Scene scene = test::scene_from_xml(R"(
+        <shape type="cube"><transform name="to_world"><scale value="0.5, 1, 2"/></transform></shape>)");
+    EXPECT_NEAR(scene.shapes()[0].surface_area(), 2.f * (0.5f * 1.f + 1.f * 2.f + 0.5f * 2.f) * 4.f,
+                1e-4f);
+    const Vec3f directions[] = {Vec3f::UnitX(),  -Vec3f::UnitX(), Vec3f::UnitY(),
+                                -Vec3f::UnitY(), Vec3f::UnitZ(),  -Vec3f::UnitZ()};
+    for (const Vec3f& d : directions) {
+        const SurfaceInteraction si =
+            scene.intersect(Ray{Vec3f(0.01f, 0.02f, 0.03f) + 10.f * d, -d, kInfinity});
+        ASSERT_TRUE(si.valid());
+        EXPECT_NEAR(si.n_geometric.dot(d), 1.f, 1e-5f) << d.transpose();
+    }
+}
+
+TEST(SceneBuild, SphereHasExactNormalsAndConsistentDifferentials) {
+    const Scene scene = test::scene_from_xml(R"(
+        <shape type="sphere"><point name="center" value="1, 2, 3"/><float name="radius" value="0.5"/></shape>)");
+    const Vec3f origin(1.3f, 2.2f, 10.f);
+    const SurfaceInteraction si = scene.intersect(Ray{origin, -Vec3f::UnitZ(), kInfinity});
+    ASSERT_TRUE(si.valid());
+    EXPECT_NEAR((si.p - Vec3f(1, 2, 3)).norm(), 0.5f, 1e-6f);
+    EXPECT_NEAR((si.n_geometric - (si.p - Vec3f(1, 2, 3)) / 0.5f).norm(), 0.f, 1e-5f);
+    // dp/du and dp/dv agree with finite differences of the parametrisation.
+    const Shape& shape = scene.shapes()[0];
+    const float h = 1e-3f;
+    const SurfaceInteraction a = shape.interaction_at(0, si.surface_param + Vec2f(h, 0.f));
+    const SurfaceInteraction b = shape.interaction_at(0, si.surface_param - Vec2f(h, 0.f));
+    EXPECT_NEAR(((a.p - b.p) / (2.f * h) - si.dp_du).norm(), 0.f, 2e-3f * si.dp_du.norm());
+    EXPECT_NEAR(((a.shading.n - b.shading.n) / (2.f * h) - si.dn_du).norm(), 0.f,
+                2e-3f * si.dn_du.norm());
+}
+
+TEST(SceneBuild, MeshNormalDerivativesMatchFiniteDifferences) {
+    const auto dir = std::filesystem::temp_directory_path() / "gdmlt_test_mesh_normals";
+    std::filesystem::create_directories(dir);
+    const auto path = dir / "bent.obj";
+    // A bent quad: smooth vertex normals vary across each triangle.
+    std::ofstream(path) << "v 0 0 0\nv 1 0 0.3\nv 1 1 0\nv 0 1 0.2\nf 1 2 3\nf 1 3 4\n";
+    const Scene scene = test::scene_from_xml(
+        "<shape type=\"obj\"><string name=\"filename\" value=\"" + path.string() + "\"/></shape>");
+    const Shape& shape = scene.shapes()[0];
+    const Vec2f uv(0.3f, 0.2f);
+    const SurfaceInteraction si = shape.interaction_at(0, uv);
+    ASSERT_GT(si.dn_du.norm() + si.dn_dv.norm(), 1e-3f);
+    const float h = 1e-3f;
+    for (int axis = 0; axis < 2; ++axis) {
+        const Vec2f step = axis == 0 ? Vec2f(h, 0.f) : Vec2f(0.f, h);
+        const Vec3f fd = (shape.interaction_at(0, uv + step).shading.n -
+                          shape.interaction_at(0, uv - step).shading.n) /
+                         (2.f * h);
+        const Vec3f analytic = axis == 0 ? si.dn_du : si.dn_dv;
+        EXPECT_NEAR((fd - analytic).norm(), 0.f, 1e-3f) << "axis " << axis;
+    }
+    std::filesystem::remove_all(dir);
+}
+
+TEST(SceneBuild, FeaturesSayWhichEffectsOccur) {
+    const Scene diffuse_only = test::scene_from_xml(kLight + R"(<shape type="cube"/>)");
+    EXPECT_TRUE(diffuse_only.features().has_diffuse);
+    EXPECT_FALSE(diffuse_only.features().specular_chains_possible);
+    const Scene glass =
+        test::scene_from_xml(kLight + R"(<shape type="sphere"><bsdf type="dielectric"/></shape>)");
+    EXPECT_TRUE(glass.features().has_delta_transmission);
+    EXPECT_TRUE(glass.features().specular_chains_possible);
+    EXPECT_EQ(glass.features().bsdf_kinds.count("dielectric"), 1u);
+}
+
+}  // namespace
+}  // namespace gdmlt
