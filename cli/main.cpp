@@ -20,6 +20,7 @@
 #include "core/render/render_path.h"
 #include "core/scene/scene.h"
 #include "core/scene/scene_desc.h"
+#include "mlt/pssmlt.h"
 
 namespace {
 
@@ -47,7 +48,31 @@ struct RenderOptions {
     std::string stats_path;
     bool lenient = false;
     bool quiet = false;
+    // PSSMLT knobs (unset: the scene's <integrator> or the defaults).
+    std::optional<double> p_large;
+    std::vector<double> mutation_size;
+    std::optional<double> image_mutation_pixels;
+    std::optional<int> chains;
+    std::optional<int> bootstrap;
+    std::optional<double> mpp;
 };
+
+/// What an integrator hands back to the CLI: the image, its statistics, whether it is partial.
+struct IntegratorResult {
+    Image image;
+    json stats;
+    json config;
+    bool partial = false;
+    std::uint64_t seed = 0;
+};
+
+json path_counters_json(const PathCounters& c, double seconds) {
+    return {{"camera", c.camera_rays},
+            {"bounce", c.bounce_rays},
+            {"shadow", c.shadow_rays},
+            {"total", c.rays()},
+            {"per_s", seconds > 0 ? static_cast<double>(c.rays()) / seconds : 0.0}};
+}
 
 std::map<std::string, std::string> parse_defines(const std::vector<std::string>& defines) {
     std::map<std::string, std::string> result;
@@ -97,14 +122,7 @@ void write_text_atomically(const std::string& path, const std::string& text) {
     std::filesystem::rename(temp, target);
 }
 
-int run_render(const RenderOptions& options) {
-    const Scene scene = load_scene(options.scene_path, options.defines, options.lenient);
-
-    // Effective configuration: defaults < scene file < command line.
-    const std::string integrator =
-        options.integrator.empty() ? scene.integrator().type : options.integrator;
-    if (integrator != "path")
-        throw InputError("integrator '" + integrator + "' is not available yet (available: path)");
+IntegratorResult run_path(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
     RenderSettings settings;
     settings.spp = options.spp > 0 ? options.spp : scene.sampler().sample_count;
     settings.time_budget_s = options.time_s;
@@ -114,87 +132,171 @@ int run_render(const RenderOptions& options) {
     settings.path.max_depth = options.max_depth.value_or(scene.integrator().max_depth);
     settings.path.rr_depth = scene.integrator().rr_depth;
     settings.path.hide_emitters = scene.integrator().hide_emitters;
-    if (settings.path.max_depth == 0 || settings.path.max_depth < -1)
+
+    IntegratorResult r;
+    r.seed = settings.seed;
+    r.config = {
+        {"integrator", "path"},
+        {"spp", options.time_s > 0.0 && options.spp == 0 ? json(nullptr) : json(settings.spp)},
+        {"time_budget_s", settings.time_budget_s},
+        {"seed", settings.seed},
+        {"max_depth", settings.path.max_depth},
+        {"rr_depth", settings.path.rr_depth},
+        {"hide_emitters", settings.path.hide_emitters}};
+    const RenderOutput out = render_path(
+        scene, settings, &g_interrupted,
+        [&](const RenderProgress& p) { bar.update(p.fraction, p.samples, p.elapsed_s); });
+    const RenderStats& s = out.stats;
+    r.image = out.image;
+    r.partial = s.interrupted;
+    r.stats = {
+        {"render_s", s.render_s},
+        {"samples", s.samples},
+        {"spp_completed", s.spp_completed},
+        {"passes", s.passes},
+        {"samples_per_s", s.render_s > 0 ? static_cast<double>(s.samples) / s.render_s : 0.0},
+        {"rays", path_counters_json(s.counters, s.render_s)},
+        {"nonfinite_samples_dropped", s.nonfinite_samples_dropped}};
+    return r;
+}
+
+IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
+    mlt::PssmltSettings settings = mlt::pssmlt_settings_from_scene(scene.integrator());
+    if (options.p_large) settings.mutation.p_large = *options.p_large;
+    if (!options.mutation_size.empty()) {
+        if (options.mutation_size.size() != 2) throw InputError("--mutation-size expects S1,S2");
+        settings.mutation.s1 = options.mutation_size[0];
+        settings.mutation.s2 = options.mutation_size[1];
+    }
+    if (options.image_mutation_pixels)
+        settings.mutation.image_s2_pixels = *options.image_mutation_pixels;
+    if (options.chains) settings.chains = *options.chains;
+    if (options.bootstrap) settings.bootstrap_samples = *options.bootstrap;
+    if (options.mpp) settings.mutations_per_pixel = *options.mpp;
+    // --spp gives a PSSMLT budget of as many mutations per pixel.
+    if (!options.mpp && options.spp > 0) settings.mutations_per_pixel = options.spp;
+    settings.time_budget_s = options.time_s;
+    settings.seed = options.seed.value_or(scene.sampler().seed);
+    if (options.max_depth) settings.path.max_depth = *options.max_depth;
+    mlt::validate_pssmlt_settings(settings, FileLoc{"command line", 0, 0});
+
+    IntegratorResult r;
+    r.seed = settings.seed;
+    r.config = {
+        {"integrator", "pssmlt"},
+        {"mutations_per_pixel",
+         options.time_s > 0.0 && !options.mpp ? json(nullptr) : json(settings.mutations_per_pixel)},
+        {"time_budget_s", settings.time_budget_s},
+        {"seed", settings.seed},
+        {"p_large", settings.mutation.p_large},
+        {"mutation_size", {settings.mutation.s1, settings.mutation.s2}},
+        {"image_mutation_size_pixels", settings.mutation.image_s2_pixels},
+        {"chains", settings.chains},
+        {"bootstrap_samples", settings.bootstrap_samples},
+        {"kelemen_style_weights", settings.kelemen_weights},
+        {"max_depth", settings.path.max_depth},
+        {"rr_depth", settings.path.rr_depth},
+        {"hide_emitters", settings.path.hide_emitters}};
+    const mlt::PssmltOutput out = mlt::render_pssmlt(
+        scene, settings, &g_interrupted,
+        [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
+    const mlt::PssmltStats& s = out.stats;
+    r.image = out.image;
+    r.partial = s.interrupted;
+    auto rate = [](std::uint64_t accepted, std::uint64_t proposed) {
+        return proposed > 0 ? static_cast<double>(accepted) / static_cast<double>(proposed) : 0.0;
+    };
+    r.stats = {
+        {"render_s", s.total_s},
+        {"bootstrap_s", s.bootstrap_s},
+        {"chains_s", s.chains_s},
+        {"chains", s.chains},
+        {"mutations", s.mutations},
+        {"mutations_per_s", s.chains_s > 0 ? static_cast<double>(s.mutations) / s.chains_s : 0.0},
+        {"acceptance",
+         {{"large", rate(s.large_accepted, s.large_proposed)},
+          {"small", rate(s.small_accepted, s.small_proposed)},
+          {"large_proposed", s.large_proposed},
+          {"small_proposed", s.small_proposed}}},
+        {"longest_rejection_streak", s.longest_rejection_streak},
+        {"median_longest_rejection_streak_per_chain", s.median_longest_rejection_streak},
+        {"chain_brightness",
+         {{"mean", s.chain_brightness_mean},
+          {"relative_spread", s.chain_brightness_relative_spread}}},
+        {"normalisation",
+         {{"b", s.b},
+          {"b_standard_error", s.b_standard_error},
+          {"b_independent", s.b_independent},
+          {"b_independent_standard_error", s.b_independent_standard_error},
+          {"bootstrap_samples", s.bootstrap_samples},
+          {"bootstrap_nonzero", s.bootstrap_nonzero}}},
+        {"replay_mismatches", s.replay_mismatches},
+        {"nonfinite_samples_dropped", s.nonfinite_dropped},
+        {"rays", path_counters_json(s.counters, s.total_s)}};
+    return r;
+}
+
+int run_render(const RenderOptions& options) {
+    const Scene scene = load_scene(options.scene_path, options.defines, options.lenient);
+
+    // Effective configuration: defaults < scene file < command line.
+    const std::string integrator =
+        options.integrator.empty() ? scene.integrator().type : options.integrator;
+    if (integrator != "path" && integrator != "pssmlt")
+        throw InputError("integrator '" + integrator +
+                         "' is not available yet (available: path, pssmlt)");
+    if (options.max_depth && (*options.max_depth == 0 || *options.max_depth < -1))
         throw InputError("--max-depth must be -1 or at least 1");
 
     const int threads = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                               static_cast<std::size_t>(threads));
 
-    json config = {
-        {"scene", options.scene_path},
-        {"integrator", integrator},
-        {"spp", options.time_s > 0.0 && options.spp == 0 ? json(nullptr) : json(settings.spp)},
-        {"time_budget_s", settings.time_budget_s},
-        {"seed", settings.seed},
-        {"max_depth", settings.path.max_depth},
-        {"rr_depth", settings.path.rr_depth},
-        {"hide_emitters", settings.path.hide_emitters},
-        {"threads", threads},
-        {"defines", options.defines},
-        {"version", kVersion}};
-
     const Film& film = scene.camera().film();
     if (!options.quiet)
         std::cerr << "gdmlt: rendering " << options.scene_path << " (" << film.crop_width << "x"
-                  << film.crop_height << ", " << integrator << ", "
-                  << (options.time_s > 0.0 ? std::to_string(options.time_s) + " s"
-                                           : std::to_string(settings.spp) + " spp")
-                  << ", " << threads << " threads, seed " << settings.seed << ")\n";
+                  << film.crop_height << ", " << integrator << ", " << threads << " threads)\n";
 
     g_interrupted.store(false);
     std::signal(SIGINT, on_sigint);
     ProgressBar bar(isatty(STDERR_FILENO) != 0, options.quiet);
-    const RenderOutput out = render_path(
-        scene, settings, &g_interrupted,
-        [&](const RenderProgress& p) { bar.update(p.fraction, p.samples, p.elapsed_s); });
+    IntegratorResult result =
+        integrator == "pssmlt" ? run_pssmlt(scene, options, bar) : run_path(scene, options, bar);
     std::signal(SIGINT, SIG_DFL);
-    bar.finish(out.stats.interrupted);
+    bar.finish(result.partial);
 
-    const RenderStats& s = out.stats;
-    json stats = {
-        {"config", config},
-        {"partial", s.interrupted},
-        {"render_s", s.render_s},
-        {"samples", s.samples},
-        {"spp_completed", s.spp_completed},
-        {"passes", s.passes},
-        {"samples_per_s", s.render_s > 0 ? static_cast<double>(s.samples) / s.render_s : 0.0},
-        {"rays",
-         {{"camera", s.counters.camera_rays},
-          {"bounce", s.counters.bounce_rays},
-          {"shadow", s.counters.shadow_rays},
-          {"total", s.counters.rays()},
-          {"per_s", s.render_s > 0 ? static_cast<double>(s.counters.rays()) / s.render_s : 0.0}}},
-        {"nonfinite_samples_dropped", s.nonfinite_samples_dropped},
-        {"scene", {{"features", features_json(scene.features())}, {"counts", scene.counts()}}},
-        {"machinery",
-         {{"next_event_estimation", true},
-          {"manifold_solver", false},
-          {"why_manifold_off", "the path integrator never uses it"}}}};
+    json config = result.config;
+    config["scene"] = options.scene_path;
+    config["threads"] = threads;
+    config["defines"] = options.defines;
+    config["version"] = kVersion;
+    json stats = result.stats;
+    stats["config"] = config;
+    stats["partial"] = result.partial;
+    stats["scene"] = {{"features", features_json(scene.features())}, {"counts", scene.counts()}};
+    stats["machinery"] = {{"next_event_estimation", true},
+                          {"manifold_solver", false},
+                          {"why_manifold_off", "the " + integrator + " integrator never uses it"}};
 
     ExrAttributes attributes;
     attributes["gdmlt/config"] = config.dump();
-    attributes["gdmlt/seed"] = std::to_string(settings.seed);
+    attributes["gdmlt/seed"] = std::to_string(result.seed);
     attributes["gdmlt/version"] = kVersion;
-    attributes["gdmlt/partial"] = s.interrupted ? "true" : "false";
-    attributes["gdmlt/spp_completed"] = std::to_string(s.spp_completed);
+    attributes["gdmlt/partial"] = result.partial ? "true" : "false";
 
     std::string output = options.output;
     if (output.empty()) output = std::filesystem::path(options.scene_path).stem().string() + ".exr";
-    write_exr(output, {ExrLayer{"", {"R", "G", "B"}, out.image}}, attributes);
+    write_exr(output, {ExrLayer{"", {"R", "G", "B"}, result.image}}, attributes);
     const std::string png = std::filesystem::path(output).replace_extension(".png").string();
-    write_png_srgb(png, out.image);
+    write_png_srgb(png, result.image);
     if (!options.stats_path.empty())
         write_text_atomically(options.stats_path, stats.dump(2) + "\n");
 
     if (!options.quiet)
         std::cerr << "gdmlt: wrote " << output << " and " << png
-                  << (s.interrupted ? " (partial: interrupted)" : "") << "; " << s.samples
-                  << " samples in " << s.render_s << " s ("
-                  << (s.render_s > 0 ? static_cast<double>(s.samples) / s.render_s / 1e6 : 0.0)
-                  << " M samples/s)\n";
-    return s.interrupted ? 130 : 0;
+                  << (result.partial ? " (partial: interrupted)" : "") << " in "
+                  << stats.value("render_s", 0.0) << " s\n";
+    return result.partial ? 130 : 0;
 }
 
 int run_info(const std::string& scene_path, const std::vector<std::string>& defines, bool lenient) {
@@ -239,7 +341,8 @@ int main(int argc, char** argv) {
                            "Output EXR (a PNG preview is written beside it)");
     render_cmd->add_option("-D,--define", render.defines,
                            "Scene parameter name=value (overrides <default>)");
-    render_cmd->add_option("--integrator", render.integrator, "path (default: the scene's)");
+    render_cmd->add_option("--integrator", render.integrator,
+                           "path | pssmlt (default: the scene's)");
     auto* spp_opt =
         render_cmd->add_option("--spp", render.spp, "Samples per pixel (default: the scene's)")
             ->check(CLI::PositiveNumber);
@@ -258,6 +361,21 @@ int main(int argc, char** argv) {
     render_cmd->add_flag("--lenient", render.lenient,
                          "Unknown plugins/properties are warnings, not errors");
     render_cmd->add_flag("-q,--quiet", render.quiet, "No progress output");
+    render_cmd->add_option("--p-large", render.p_large, "PSSMLT: large-step probability (0.3)")
+        ->check(CLI::Range(0.0, 1.0));
+    render_cmd
+        ->add_option("--mutation-size", render.mutation_size,
+                     "PSSMLT: small-step sizes S1,S2 (1/1024,1/64)")
+        ->delimiter(',')
+        ->expected(2);
+    render_cmd->add_option("--image-mutation-size", render.image_mutation_pixels,
+                           "PSSMLT: small-step size S2 of the image coordinates, in pixels");
+    render_cmd->add_option("--chains", render.chains,
+                           "PSSMLT: number of Markov chains (0: automatic)");
+    render_cmd->add_option("--bootstrap", render.bootstrap,
+                           "PSSMLT: bootstrap samples estimating b (100000)");
+    render_cmd->add_option("--mpp", render.mpp,
+                           "PSSMLT: mutations per pixel (default 64, or --spp)");
 
     std::string info_scene;
     std::vector<std::string> info_defines;

@@ -24,6 +24,30 @@ std::string sensor_xml(int resolution, float fov_deg, const std::string& origin,
            "\"/><rfilter type=\"box\"/></film></sensor>";
 }
 
+std::string cornell_box_xml(int resolution, bool glass_sphere) {
+    std::string xml = sensor_xml(resolution, 39.3f, "0, 0, 3.9") + R"(
+        <bsdf type="diffuse" id="white"><rgb name="reflectance" value="0.725, 0.71, 0.68"/></bsdf>
+        <bsdf type="diffuse" id="red"><rgb name="reflectance" value="0.63, 0.065, 0.05"/></bsdf>
+        <bsdf type="diffuse" id="green"><rgb name="reflectance" value="0.14, 0.45, 0.091"/></bsdf>
+        <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="-90"/><translate y="-1"/></transform><ref id="white"/></shape>
+        <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="90"/><translate y="1"/></transform><ref id="white"/></shape>
+        <shape type="rectangle"><transform name="to_world"><translate z="-1"/></transform><ref id="white"/></shape>
+        <shape type="rectangle"><transform name="to_world"><rotate y="1" angle="90"/><translate x="-1"/></transform><ref id="red"/></shape>
+        <shape type="rectangle"><transform name="to_world"><rotate y="1" angle="-90"/><translate x="1"/></transform><ref id="green"/></shape>
+        <shape type="rectangle"><transform name="to_world"><scale value="0.25, 0.2, 1"/><rotate x="1" angle="90"/><translate y="0.99"/></transform>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+            <emitter type="area"><rgb name="radiance" value="17, 12, 4"/></emitter></shape>
+        <shape type="cube"><transform name="to_world"><scale value="0.3, 0.6, 0.3"/><rotate y="1" angle="20"/><translate value="-0.35, -0.4, -0.3"/></transform><ref id="white"/></shape>)";
+    if (glass_sphere)
+        xml +=
+            R"(<shape type="sphere"><point name="center" value="0.4, -0.62, 0.3"/><float name="radius" value="0.38"/>
+            <bsdf type="dielectric"><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/></bsdf></shape>)";
+    else
+        xml +=
+            R"(<shape type="cube"><transform name="to_world"><scale value="0.3"/><rotate y="1" angle="-18"/><translate value="0.35, -0.7, 0.3"/></transform><ref id="white"/></shape>)";
+    return xml;
+}
+
 PixelStatistics pixel_statistics(const std::vector<float>& rgb, int channel) {
     const std::size_t n = rgb.size() / 3;
     double sum = 0.0, sum2 = 0.0;

@@ -13,6 +13,10 @@ Scene scene_from_xml(const std::string& body, const BuildOptions& options = {});
 /// A sensor block: perspective camera at `origin` looking at the origin, square film.
 std::string sensor_xml(int resolution, float fov_deg, const std::string& origin, int spp = 16);
 
+/// A small Cornell box (diffuse walls, two boxes, an area light under the ceiling, one glass
+/// sphere when `glass_sphere`), camera included, at `resolution`^2 pixels.
+std::string cornell_box_xml(int resolution, bool glass_sphere = false);
+
 /// Mean and standard error of the pixel means of a 3-channel image over channel `c`.
 struct PixelStatistics {
     double mean = 0.0;

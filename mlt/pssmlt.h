@@ -1,0 +1,76 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+// Primary sample space MLT (Kelemen et al. 2002) on the path tracer's path sampler: the
+// baseline and correctness oracle for the gradient-domain chain. See
+// ../shared/notes/algorithms.md, section 1.
+#include <atomic>
+#include <cstdint>
+#include <functional>
+
+#include "core/image/image.h"
+#include "core/path/path_sampler.h"
+#include "core/scene/scene.h"
+#include "mlt/mutation.h"
+
+namespace gdmlt::mlt {
+
+/// Every PSSMLT knob with its default. Read from the scene's <integrator type="pssmlt">
+/// (pssmlt_settings_from_scene) and overridden by the command line.
+struct PssmltSettings {
+    MutationSettings mutation;
+    int chains = 0;                     // 0: one per 16384 mutations, at least 16
+    int bootstrap_samples = 100000;     // independent paths estimating b; raised to 10 x chains
+    double mutations_per_pixel = 64.0;  // budget (upper bound when time_budget_s > 0)
+    double time_budget_s = 0.0;
+    std::uint64_t seed = 0;
+    PathSamplerSettings path;
+    /// Kelemen's MIS of large steps with the chain (Kelemen et al. 2002, sec. 5; unbiased
+    /// with p_large > 0); false: Veach's expected values only.
+    bool kelemen_weights = true;
+};
+
+struct PssmltStats {
+    // Normalisation b = E[luminance of a path's contribution] (the image's mean luminance).
+    double b = 0.0;
+    double b_standard_error = 0.0;
+    std::uint64_t bootstrap_samples = 0;
+    std::uint64_t bootstrap_nonzero = 0;
+    // An independent path-traced estimate of the same quantity, as a check of b.
+    double b_independent = 0.0;
+    double b_independent_standard_error = 0.0;
+
+    int chains = 0;
+    std::uint64_t mutations = 0;
+    std::uint64_t large_proposed = 0, large_accepted = 0;
+    std::uint64_t small_proposed = 0, small_accepted = 0;
+    std::uint64_t longest_rejection_streak = 0;     // over all chains
+    double median_longest_rejection_streak = 0.0;   // median over chains of each one's longest
+    double chain_brightness_mean = 0.0;             // mean over chains of each chain's mean I
+    double chain_brightness_relative_spread = 0.0;  // their standard deviation / mean
+    std::uint64_t nonfinite_dropped = 0;
+    std::uint64_t replay_mismatches = 0;  // chain start != bootstrap value (non-determinism)
+    PathCounters counters;
+    double bootstrap_s = 0.0, chains_s = 0.0, total_s = 0.0;
+    bool interrupted = false;
+};
+
+struct PssmltOutput {
+    Image image;
+    PssmltStats stats;
+};
+
+/// Reads the knobs of a <integrator type="pssmlt"> element (Mitsuba 0.6/3 names where they
+/// exist: p_large, mutation_size_low, mutation_size_high, luminance_samples, ...; plus
+/// chains, bootstrap_samples, mutations_per_pixel, image_mutation_size). Unknown properties
+/// throw InputError with the location.
+PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator);
+
+/// Throws InputError (at `loc`) when a knob is out of range.
+void validate_pssmlt_settings(const PssmltSettings& settings, const FileLoc& loc);
+
+/// Renders with PSSMLT. `cancel` is polled between rounds; `progress` gets the fraction done.
+PssmltOutput render_pssmlt(
+    const Scene& scene, const PssmltSettings& settings, const std::atomic<bool>* cancel = nullptr,
+    const std::function<void(double fraction, double elapsed_s)>& progress = {});
+
+}  // namespace gdmlt::mlt
