@@ -48,12 +48,12 @@ TEST(Pssmlt, ConvergesToThePathTracersImageOnASmallCornellBox) {
     EXPECT_NEAR(s.b_independent, pt_mean, 4.0 * s.b_independent_standard_error);
     EXPECT_NEAR(mean_luminance(out.image), pt_mean, 4.0 * s.b_standard_error + 0.01 * pt_mean);
 
-    X
-        // mutations per pixel on this scene, dominated by correlated chain noise); the bound of
-        // 0.02 allows for the spread over seeds and still fails for any systematic error above
-        // ~14% per pixel, e.g. a wrong splat weight or normalisation.
-        const double rel_mse = test::relative_mse(out.image.pixels, reference.image.pixels);
-    EXPECT_LT(rel_mse, 0.02);
+    // Per-pixel agreement. Measured with these seeds: relMSE 0.0025 (PSSMLT's error at 1024
+    // mutations per pixel on this scene, dominated by correlated chain noise); the bound of
+    // 0.01 leaves 4x for the heavy-tailed spread of MLT error over seeds and still fails for a
+    // systematic per-pixel error above ~10%, e.g. a wrong splat weight or normalisation.
+    const double rel_mse = test::relative_mse(out.image.pixels, reference.image.pixels);
+    EXPECT_LT(rel_mse, 0.01);
     RecordProperty("relMSE", std::to_string(rel_mse));
 }
 
