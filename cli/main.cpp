@@ -7,6 +7,7 @@
 
 #include <CLI/CLI.hpp>
 #include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -20,7 +21,10 @@
 #include "core/render/render_path.h"
 #include "core/scene/scene.h"
 #include "core/scene/scene_desc.h"
+#include "mlt/gdpt.h"
 #include "mlt/pssmlt.h"
+#include "reconstruct/reconstruct.h"
+#include "reconstruct/reconstruct_input.h"
 
 namespace {
 
@@ -55,11 +59,16 @@ struct RenderOptions {
     std::optional<int> chains;
     std::optional<int> bootstrap;
     std::optional<double> mpp;
+    // Gradient-domain knobs.
+    std::string reconstruct_method;
+    std::optional<double> alpha;
+    std::string shift;
 };
 
 /// What an integrator hands back to the CLI: the image, its statistics, whether it is partial.
 struct IntegratorResult {
     Image image;
+    std::vector<ExrLayer> extra_layers;  // e.g. primal, dx, dy of gradient-domain renders
     json stats;
     json config;
     bool partial = false;
@@ -236,15 +245,93 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
     return r;
 }
 
+IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
+    mlt::GdptSettings settings;
+    settings.spp = options.spp > 0 ? options.spp : scene.sampler().sample_count;
+    settings.time_budget_s = options.time_s;
+    if (options.time_s > 0.0 && options.spp == 0)
+        settings.spp = std::numeric_limits<int>::max() / 2;
+    settings.seed = options.seed.value_or(scene.sampler().seed);
+    settings.path.max_depth = options.max_depth.value_or(scene.integrator().max_depth);
+    settings.path.rr_depth = scene.integrator().rr_depth;
+    settings.path.hide_emitters = scene.integrator().hide_emitters;
+    const std::string shift = options.shift.empty() ? "auto" : options.shift;
+    if (shift == "auto")
+        settings.shift = manifold::ShiftKind::Auto;
+    else if (shift == "reconnect")
+        settings.shift = manifold::ShiftKind::Reconnect;
+    else if (shift == "halfvector")
+        settings.shift = manifold::ShiftKind::HalfVector;
+    else if (shift == "replay")
+        settings.shift = manifold::ShiftKind::Replay;
+    else
+        throw InputError("--shift must be auto, reconnect, halfvector or replay");
+    reconstruct::ReconstructConfig rc;
+    if (!options.reconstruct_method.empty()) {
+        const auto method = reconstruct::parse_method(options.reconstruct_method);
+        if (!method) throw InputError("--reconstruct must be l1, l2 or cv");
+        rc.method = *method;
+    }
+    if (options.alpha) rc.alpha = *options.alpha;
+
+    IntegratorResult r;
+    r.seed = settings.seed;
+    r.config = {
+        {"integrator", "gdpt"},
+        {"spp", options.time_s > 0.0 && options.spp == 0 ? json(nullptr) : json(settings.spp)},
+        {"time_budget_s", settings.time_budget_s},
+        {"seed", settings.seed},
+        {"shift", shift},
+        {"reconstruct", reconstruct::to_string(rc.method)},
+        {"alpha", rc.alpha},
+        {"max_depth", settings.path.max_depth},
+        {"hide_emitters", settings.path.hide_emitters}};
+    const mlt::GdptOutput out = mlt::render_gdpt(
+        scene, settings, &g_interrupted,
+        [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
+    const auto solve_start = std::chrono::steady_clock::now();
+    const reconstruct::ReconstructResult solved =
+        reconstruct::reconstruct(reconstruct::make_reconstruct_input(out.buffers), rc);
+    const double solve_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - solve_start).count();
+    r.image = solved.image;
+    r.extra_layers = {ExrLayer{"primal", {"R", "G", "B"}, out.buffers.primal},
+                      ExrLayer{"dx", {"R", "G", "B"}, out.buffers.dx},
+                      ExrLayer{"dy", {"R", "G", "B"}, out.buffers.dy},
+                      ExrLayer{"sample_count", {"Y"}, out.buffers.sample_count}};
+    const mlt::GdptStats& s = out.stats;
+    r.partial = s.interrupted;
+    json by_status = json::object();
+    for (int i = 0; i < static_cast<int>(manifold::ShiftStatus::Count); ++i)
+        by_status[manifold::to_string(static_cast<manifold::ShiftStatus>(i))] =
+            s.shifts.by_status[static_cast<std::size_t>(i)];
+    r.stats = {
+        {"render_s", s.render_s + solve_s},
+        {"sampling_s", s.render_s},
+        {"reconstruct_s", solve_s},
+        {"samples", s.samples},
+        {"spp_completed", s.spp_completed},
+        {"samples_per_s", s.render_s > 0 ? static_cast<double>(s.samples) / s.render_s : 0.0},
+        {"rays", path_counters_json(s.counters, s.render_s)},
+        {"shifts",
+         {{"total", s.shifts.shifts},
+          {"by_status", by_status},
+          {"reconnections", s.shifts.reconnections},
+          {"half_vector_steps", s.shifts.half_vector_steps},
+          {"replay_steps", s.shifts.replay_steps}}},
+        {"nonfinite_samples_dropped", s.nonfinite_dropped}};
+    return r;
+}
+
 int run_render(const RenderOptions& options) {
     const Scene scene = load_scene(options.scene_path, options.defines, options.lenient);
 
     // Effective configuration: defaults < scene file < command line.
     const std::string integrator =
         options.integrator.empty() ? scene.integrator().type : options.integrator;
-    if (integrator != "path" && integrator != "pssmlt")
+    if (integrator != "path" && integrator != "pssmlt" && integrator != "gdpt")
         throw InputError("integrator '" + integrator +
-                         "' is not available yet (available: path, pssmlt)");
+                         "' is not available yet (available: path, pssmlt, gdpt)");
     if (options.max_depth && (*options.max_depth == 0 || *options.max_depth < -1))
         throw InputError("--max-depth must be -1 or at least 1");
 
@@ -260,8 +347,9 @@ int run_render(const RenderOptions& options) {
     g_interrupted.store(false);
     std::signal(SIGINT, on_sigint);
     ProgressBar bar(isatty(STDERR_FILENO) != 0, options.quiet);
-    IntegratorResult result =
-        integrator == "pssmlt" ? run_pssmlt(scene, options, bar) : run_path(scene, options, bar);
+    IntegratorResult result = integrator == "pssmlt" ? run_pssmlt(scene, options, bar)
+                              : integrator == "gdpt" ? run_gdpt(scene, options, bar)
+                                                     : run_path(scene, options, bar);
     std::signal(SIGINT, SIG_DFL);
     bar.finish(result.partial);
 
@@ -274,9 +362,17 @@ int run_render(const RenderOptions& options) {
     stats["config"] = config;
     stats["partial"] = result.partial;
     stats["scene"] = {{"features", features_json(scene.features())}, {"counts", scene.counts()}};
-    stats["machinery"] = {{"next_event_estimation", true},
-                          {"manifold_solver", false},
-                          {"why_manifold_off", "the " + integrator + " integrator never uses it"}};
+    stats["machinery"] = {
+        {"next_event_estimation", true},
+        {"shift_mappings", integrator == "gdpt"},
+        {"half_vector_or_replay_through_specular",
+         integrator == "gdpt" && scene.features().specular_chains_possible},
+        {"manifold_solver", false},
+        {"why", scene.features().specular_chains_possible
+                    ? "specular chains are possible; the manifold shift is not wired into " +
+                          integrator + " yet"
+                    : "no delta or glossy surface: no specular chain can occur, no half-vector or "
+                      "manifold code runs"}};
 
     ExrAttributes attributes;
     attributes["gdmlt/config"] = config.dump();
@@ -286,7 +382,9 @@ int run_render(const RenderOptions& options) {
 
     std::string output = options.output;
     if (output.empty()) output = std::filesystem::path(options.scene_path).stem().string() + ".exr";
-    write_exr(output, {ExrLayer{"", {"R", "G", "B"}, result.image}}, attributes);
+    std::vector<ExrLayer> layers = {ExrLayer{"", {"R", "G", "B"}, result.image}};
+    layers.insert(layers.end(), result.extra_layers.begin(), result.extra_layers.end());
+    write_exr(output, layers, attributes);
     const std::string png = std::filesystem::path(output).replace_extension(".png").string();
     write_png_srgb(png, result.image);
     if (!options.stats_path.empty())

@@ -1,0 +1,323 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "manifold/shift.h"
+
+#include <cmath>
+
+namespace gdmlt::manifold {
+
+const char* to_string(ShiftStatus status) {
+    switch (status) {
+        case ShiftStatus::Ok:
+            return "ok";
+        case ShiftStatus::Escaped:
+            return "escaped";
+        case ShiftStatus::Occluded:
+            return "occluded";
+        case ShiftStatus::ClassificationChanged:
+            return "classification_changed";
+        case ShiftStatus::LobeChanged:
+            return "lobe_changed";
+        case ShiftStatus::TotalInternalReflection:
+            return "total_internal_reflection";
+        case ShiftStatus::Count:
+            break;
+    }
+    return "?";
+}
+
+const char* to_string(ShiftKind kind) {
+    switch (kind) {
+        case ShiftKind::Auto:
+            return "auto";
+        case ShiftKind::Reconnect:
+            return "reconnect";
+        case ShiftKind::HalfVector:
+            return "halfvector";
+        case ShiftKind::Replay:
+            return "replay";
+    }
+    return "?";
+}
+
+ShiftCounters& ShiftCounters::operator+=(const ShiftCounters& o) {
+    for (std::size_t i = 0; i < by_status.size(); ++i) by_status[i] += o.by_status[i];
+    shifts += o.shifts;
+    reconnections += o.reconnections;
+    half_vector_steps += o.half_vector_steps;
+    replay_steps += o.replay_steps;
+    return *this;
+}
+
+namespace {
+
+Vec3f previous_position(const Path& path, std::size_t k) {
+    return k == 0 ? path.camera_position : path.vertices[k - 1].si.p;
+}
+
+/// The base's next-event sample seen from the offset vertex `y`: the same point on the light
+/// (or the same direction for an infinite light), so the light vertex's Jacobian is the ratio
+/// of the area-to-solid-angle factors (1 for directions and for point lights).
+void shift_light_sample(const Scene& scene, const PathVertex& x, PathVertex& y) {
+    y.light = EmitterSample{};
+    y.light_visible = false;
+    y.log_light_jacobian = 0.0;
+    const EmitterSample& lx = x.light;
+    if (!lx.valid() || y.roughness == RoughnessClass::Delta) return;
+    EmitterSample ly = lx;
+    if (std::isinf(lx.distance)) {
+        // Environment direction: unchanged.
+    } else {
+        const Vec3f d = lx.p - y.si.p;
+        const float dist2 = d.squaredNorm();
+        if (!(dist2 > 0.f)) return;
+        ly.distance = std::sqrt(dist2);
+        ly.wi = d / ly.distance;
+        if (lx.delta) {
+            // Point light: radiance falls off as 1/d^2; the pdf is the discrete choice.
+            ly.radiance = lx.radiance * (lx.distance * lx.distance / dist2);
+        } else {
+            const float cos_x = -lx.n_geometric.dot(lx.wi);
+            const float cos_y = -lx.n_geometric.dot(ly.wi);
+            if (!(cos_y > 0.f) || !(cos_x > 0.f)) return;  // the light faces away from y
+            const double ratio = (static_cast<double>(cos_y) * lx.distance * lx.distance) /
+                                 (static_cast<double>(cos_x) * dist2);
+            ly.pdf_solid_angle = static_cast<float>(lx.pdf_solid_angle / ratio);
+            y.log_light_jacobian = std::log(ratio);
+        }
+    }
+    y.light = ly;
+    const Ray shadow = std::isinf(ly.distance)
+                           ? spawn_ray(y.si.p, y.si.n_geometric, ly.wi)
+                           : spawn_ray_to(y.si.p, y.si.n_geometric, ly.p, ly.n_geometric);
+    y.light_visible = !scene.occluded(shadow);
+}
+
+/// f and pdf of leaving offset vertex `y` (reached from `from`) towards `to_world` through its
+/// non-delta lobes; false when the direction is on the wrong side of the geometry.
+bool evaluate_continuation(const Scene& scene, PathVertex& y, const Vec3f& from,
+                           const Vec3f& to_world) {
+    const Bsdf& bsdf = scene.bsdf_of(y.si);
+    const Vec3f wo_world = (from - y.si.p).normalized();
+    const Vec3f wo = y.si.shading.to_local(wo_world);
+    const Vec3f wi = y.si.shading.to_local(to_world);
+    y.wi_world = to_world;
+    y.f = bsdf.eval(y.si.uv, wo, wi);
+    y.pdf = bsdf.pdf(y.si.uv, wo, wi);
+    y.delta = false;
+    y.continued = true;
+    const float side = y.si.n_geometric.dot(to_world) * y.si.n_geometric.dot(wo_world);
+    y.transmission = side < 0.f;
+    return y.pdf > 0.f && std::isfinite(y.pdf) && is_finite(y.f);
+}
+
+}  // namespace
+
+ShiftResult shift_path(const Scene& scene, const Path& base, const Vec2f& film_offset,
+                       ShiftKind kind, ShiftCounters& counters) {
+    ++counters.shifts;
+    ShiftResult result;
+    Path& y = result.offset;
+    y.film_position = base.film_position + film_offset;
+    Ray ray = scene.camera().generate_ray(y.film_position);
+    y.camera_position = ray.origin;
+    y.camera_direction = ray.direction;
+
+    auto finish = [&](ShiftStatus status, int valid) {
+        result.status = status;
+        result.valid_vertices = valid;
+        ++counters.by_status[static_cast<std::size_t>(status)];
+        return result;
+    };
+
+    const std::size_t n = base.vertices.size();
+    for (std::size_t k = 0;; ++k) {
+        // Trace the offset's ray to its vertex k (k = 0: the shifted primary ray).
+        const SurfaceInteraction si = scene.intersect(ray);
+        const bool base_has_vertex = k < n;
+        if (!si.valid()) {
+            if (!base_has_vertex && base.escaped) {
+                y.escaped = true;
+                y.escape_direction = ray.direction;
+                return finish(ShiftStatus::Ok, static_cast<int>(k));
+            }
+            return finish(ShiftStatus::Escaped, static_cast<int>(k));
+        }
+        if (!base_has_vertex)
+            return finish(ShiftStatus::ClassificationChanged, static_cast<int>(k));
+        const PathVertex& x = base.vertices[k];
+        PathVertex v;
+        v.si = si;
+        v.roughness = scene.bsdf_of(si).roughness_class();
+        // The inverse shift takes the same decisions only if both paths have the same
+        // classes vertex by vertex (and the same emitter status).
+        const bool x_emits = scene.shapes()[static_cast<std::size_t>(x.si.shape)].emitter() >= 0;
+        const bool y_emits = scene.shapes()[static_cast<std::size_t>(si.shape)].emitter() >= 0;
+        if (v.roughness != x.roughness || x_emits != y_emits)
+            return finish(ShiftStatus::ClassificationChanged, static_cast<int>(k));
+        shift_light_sample(scene, x, v);
+        y.vertices.push_back(v);
+        result.log_jacobian.push_back(0.0);
+        PathVertex& yk = y.vertices.back();
+        if (!x.continued) return finish(ShiftStatus::Ok, static_cast<int>(k + 1));
+
+        const Vec3f from = previous_position(y, k);
+        const bool next_exists = k + 1 < n;
+        const bool reconnects = kind == ShiftKind::Auto || kind == ShiftKind::Reconnect;
+        const bool can_reconnect =
+            reconnects && x.connectable() && yk.roughness == RoughnessClass::Diffuse &&
+            next_exists &&
+            (base.vertices[k + 1].connectable() || !base.vertices[k + 1].continued) &&
+            base.vertices[k + 1].roughness == RoughnessClass::Diffuse;
+        if (can_reconnect) {
+            // Reconnection (Lehtinen et al. 2013, sec. 5.2): y_k connects to the base's x_{k+1};
+            // the direction Jacobian is the ratio of the area-to-solid-angle factors at x_{k+1}.
+            const PathVertex& next = base.vertices[k + 1];
+            const Vec3f d = next.si.p - yk.si.p;
+            const float dist2 = d.squaredNorm();
+            const Vec3f dx = next.si.p - x.si.p;
+            if (!(dist2 > 0.f)) return finish(ShiftStatus::Occluded, static_cast<int>(k + 1));
+            const Vec3f dir = d / std::sqrt(dist2);
+            const float cos_y = std::abs(next.si.n_geometric.dot(dir));
+            const float cos_x = std::abs(next.si.n_geometric.dot(dx.normalized()));
+            if (!(cos_y > 0.f) || !(cos_x > 0.f) || !evaluate_continuation(scene, yk, from, dir))
+                return finish(ShiftStatus::Occluded, static_cast<int>(k + 1));
+            if (scene.occluded(
+                    spawn_ray_to(yk.si.p, yk.si.n_geometric, next.si.p, next.si.n_geometric)))
+                return finish(ShiftStatus::Occluded, static_cast<int>(k + 1));
+            result.log_jacobian[k] = std::log((static_cast<double>(cos_y) * dx.squaredNorm()) /
+                                              (static_cast<double>(cos_x) * dist2));
+            // From x_{k+1} on the paths coincide; only x_{k+1}'s own continuation sees a
+            // different incoming direction.
+            for (std::size_t j = k + 1; j < n; ++j) {
+                PathVertex shared = base.vertices[j];
+                if (j == k + 1 && shared.continued)
+                    evaluate_continuation(scene, shared, yk.si.p, shared.wi_world);
+                y.vertices.push_back(shared);
+                result.log_jacobian.push_back(0.0);
+            }
+            y.escaped = base.escaped;
+            y.escape_direction = base.escape_direction;
+            result.reconnected_at = static_cast<int>(k + 1);
+            ++counters.reconnections;
+            return finish(ShiftStatus::Ok, static_cast<int>(n));
+        }
+
+        // Half-vector copy / replay: sample the offset's BSDF with the base's random numbers.
+        // For a delta lobe this copies the half vector (mirror or refraction of the offset's own
+        // incident direction; Jacobian 1 for the Dirac measure); for a non-delta lobe the map of
+        // random numbers to directions gives the Jacobian p_x(w_x) / p_y(w_y).
+        const Bsdf& bsdf = scene.bsdf_of(yk.si);
+        const Vec3f wo_world = (from - yk.si.p).normalized();
+        const BsdfSample bs =
+            bsdf.sample(yk.si.uv, yk.si.shading.to_local(wo_world), x.u_lobe, x.u_direction);
+        if (!bs.valid()) {
+            return finish(
+                x.transmission ? ShiftStatus::TotalInternalReflection : ShiftStatus::LobeChanged,
+                static_cast<int>(k + 1));
+        }
+        if (bs.delta != x.delta || bs.transmission != x.transmission) {
+            const bool tir = x.transmission && !bs.transmission && x.delta;
+            return finish(tir ? ShiftStatus::TotalInternalReflection : ShiftStatus::LobeChanged,
+                          static_cast<int>(k + 1));
+        }
+        yk.continued = true;
+        yk.u_lobe = x.u_lobe;  // the inverse shift replays the same numbers
+        yk.u_direction = x.u_direction;
+        yk.wi_world = yk.si.shading.to_world(bs.wi);
+        yk.pdf = bs.pdf_solid_angle;
+        yk.f = bs.weight * bs.pdf_solid_angle;
+        yk.delta = bs.delta;
+        yk.transmission = bs.transmission;
+        const float side = yk.si.n_geometric.dot(yk.wi_world) * yk.si.n_geometric.dot(wo_world);
+        if (bs.transmission ? side > 0.f : side < 0.f)
+            return finish(ShiftStatus::LobeChanged, static_cast<int>(k + 1));
+        result.log_jacobian[k] =
+            bs.delta
+                ? 0.0
+                : std::log(static_cast<double>(x.pdf) / static_cast<double>(bs.pdf_solid_angle));
+        (bs.delta ? counters.half_vector_steps : counters.replay_steps) += 1;
+        ray = spawn_ray(yk.si.p, yk.si.n_geometric, yk.wi_world);
+    }
+}
+
+std::vector<Contribution> path_contributions(const Scene& scene, const Path& path,
+                                             const std::vector<double>& log_jacobian,
+                                             int valid_vertices, bool hide_emitters) {
+    std::vector<Contribution> out;
+    Rgb f_prefix = Rgb::Ones();  // product of f over the directions leaving vertices < k
+    double pdf_prefix = 1.0;     // same for the pdfs (the camera direction: 1)
+    double log_j_prefix = 0.0;
+    const auto count = std::min<std::size_t>(path.vertices.size(),
+                                             static_cast<std::size_t>(std::max(valid_vertices, 0)));
+    for (std::size_t k = 0; k < count; ++k) {
+        const PathVertex& v = path.vertices[k];
+        const Vec3f prev = previous_position(path, k);
+        const Vec3f wo_world = (prev - v.si.p).normalized();
+
+        // Emitter hit at v (reached by BSDF sampling from k-1, or directly visible). Listed
+        // even when it emits nothing towards wo: its shifted counterpart may, and the
+        // gradient needs both terms with their pdfs.
+        const bool on_emitter = scene.shapes()[static_cast<std::size_t>(v.si.shape)].emitter() >= 0;
+        if (on_emitter && !(k == 0 && hide_emitters)) {
+            const Rgb le = scene.emitted(v.si, wo_world);
+            {
+                Contribution c;
+                c.kind = Contribution::Kind::EmitterHit;
+                c.vertex = static_cast<int>(k);
+                c.f = f_prefix * le;
+                c.pdf = pdf_prefix;
+                if (k > 0 && !path.vertices[k - 1].delta) {
+                    const PathVertex& p = path.vertices[k - 1];
+                    c.pdf_other = pdf_prefix / p.pdf * scene.pdf_emitter_solid_angle(p.si.p, v.si);
+                }
+                c.log_jacobian = log_j_prefix;
+                out.push_back(c);
+            }
+        }
+        // Next-event estimation from v.
+        if (v.light.valid()) {
+            const Bsdf& bsdf = scene.bsdf_of(v.si);
+            const Vec3f wo = v.si.shading.to_local(wo_world);
+            const Vec3f wi = v.si.shading.to_local(v.light.wi);
+            Contribution c;
+            c.kind = Contribution::Kind::NextEvent;
+            c.vertex = static_cast<int>(k);
+            c.f = v.light_visible ? Rgb(f_prefix * bsdf.eval(v.si.uv, wo, wi) * v.light.radiance)
+                                  : Rgb(Rgb::Zero());
+            c.pdf = pdf_prefix * v.light.pdf_solid_angle;
+            c.pdf_other = v.light.delta ? 0.0 : pdf_prefix * bsdf.pdf(v.si.uv, wo, wi);
+            c.log_jacobian = log_j_prefix + (k < log_jacobian.size() ? v.log_light_jacobian : 0.0);
+            out.push_back(c);
+        }
+        if (!v.continued) break;
+        f_prefix *= v.f;
+        pdf_prefix *= v.pdf;
+        if (k < log_jacobian.size()) log_j_prefix += log_jacobian[k];
+        if (!(pdf_prefix > 0.0) || is_black(f_prefix)) break;
+        // Escape to the environment after the last vertex.
+        if (k + 1 == path.vertices.size() && path.escaped && scene.has_environment()) {
+            Contribution c;
+            c.kind = Contribution::Kind::Escape;
+            c.vertex = static_cast<int>(k + 1);
+            c.f = f_prefix * scene.environment(path.escape_direction);
+            c.pdf = pdf_prefix;
+            if (!v.delta)
+                c.pdf_other =
+                    pdf_prefix / v.pdf * scene.pdf_environment_solid_angle(path.escape_direction);
+            c.log_jacobian = log_j_prefix;
+            out.push_back(c);
+        }
+    }
+    if (path.vertices.empty() && path.escaped && scene.has_environment() && !hide_emitters &&
+        valid_vertices >= 0) {
+        Contribution c;
+        c.kind = Contribution::Kind::Escape;
+        c.vertex = 0;
+        c.f = scene.environment(path.escape_direction);
+        c.pdf = 1.0;
+        out.push_back(c);
+    }
+    return out;
+}
+
+}  // namespace gdmlt::manifold
