@@ -496,7 +496,7 @@ int main(int argc, char** argv) {
         if (render_cmd->parsed()) return run_render(render);
         if (info_cmd->parsed()) return run_info(info_scene, info_defines, info_lenient);
     } catch (const InputError& e) {
-        std::cerr << "gdmlt: error: " << e.what() << "\n";
+        std::cerr << e.what() << "\n";
         return 2;
     } catch (const std::exception& e) {
         std::cerr << "gdmlt: internal error: " << e.what() << "\n";

@@ -13,17 +13,26 @@ float triangle_area(const TriangleMesh& mesh, std::size_t triangle) {
     return 0.5f * (p1 - p0).cross(p2 - p0).norm();
 }
 
-SurfaceInteraction mesh_interaction(const TriangleMesh& mesh, std::uint32_t triangle,
-                                    const Vec2f& b) {
-    const std::uint32_t i0 = mesh.indices[3 * triangle];
-    const std::uint32_t i1 = mesh.indices[3 * triangle + 1];
-    const std::uint32_t i2 = mesh.indices[3 * triangle + 2];
+Vec3f face_normal(const TriangleMesh& mesh, std::size_t triangle) {
+    const Vec3f& p0 = mesh.positions[mesh.indices[3 * triangle]];
+    const Vec3f& p1 = mesh.positions[mesh.indices[3 * triangle + 1]];
+    const Vec3f& p2 = mesh.positions[mesh.indices[3 * triangle + 2]];
+    const float sign = mesh.flip_normals ? -1.f : 1.f;
+    return sign * (p1 - p0).cross(p2 - p0).normalized();
+}
+
+/// Fills `si` (default-constructed) for barycentrics `b` on `triangle`; `n_face` is the
+/// triangle's precomputed face_normal(). Writes into the caller's object rather than returning
+/// one: SurfaceInteraction is 136 bytes and this runs once per ray hit.
+void fill_mesh_interaction(const TriangleMesh& mesh, const Vec3f& n_face, std::uint32_t triangle,
+                           const Vec2f& b, SurfaceInteraction& si) {
+    const std::uint32_t* index = &mesh.indices[3 * static_cast<std::size_t>(triangle)];
+    const std::uint32_t i0 = index[0], i1 = index[1], i2 = index[2];
     const float b0 = 1.f - b.x() - b.y();
     const Vec3f& p0 = mesh.positions[i0];
     const Vec3f& p1 = mesh.positions[i1];
     const Vec3f& p2 = mesh.positions[i2];
 
-    SurfaceInteraction si;
     si.primitive = triangle;
     si.surface_param = b;
     // Rebuilt from barycentrics rather than o + t*d: the error is then relative to the
@@ -31,35 +40,40 @@ SurfaceInteraction mesh_interaction(const TriangleMesh& mesh, std::uint32_t tria
     si.p = b0 * p0 + b.x() * p1 + b.y() * p2;
     si.dp_du = p1 - p0;
     si.dp_dv = p2 - p0;
-    const float sign = mesh.flip_normals ? -1.f : 1.f;
-    si.n_geometric = sign * si.dp_du.cross(si.dp_dv).normalized();
+    si.n_geometric = n_face;
 
-    Vec3f n_shading = si.n_geometric;
-    if (!mesh.normals.empty()) {
+    if (mesh.normals.empty()) {
+        // Flat triangle: the shading normal is the face normal and dn/du = dn/dv = 0 (the
+        // defaults), so only the tangent frame is left to build.
+        si.shading = Frame::from_normal_and_tangent(n_face, si.dp_du);
+    } else {
+        const float sign = mesh.flip_normals ? -1.f : 1.f;
+        Vec3f n_shading = n_face;
         const Vec3f& n0 = mesh.normals[i0];
         const Vec3f& n1 = mesh.normals[i1];
         const Vec3f& n2 = mesh.normals[i2];
         const Vec3f n_interp = b0 * n0 + b.x() * n1 + b.y() * n2;
         const float length = n_interp.norm();
         if (length > 1e-20f) {
-            const Vec3f n = n_interp / length;
+            const float inv_length = 1.f / length;
+            const Vec3f n = n_interp * inv_length;
             // d(N/|N|) = (I - n n^T) dN / |N|
             const Vec3f dN_du = n1 - n0, dN_dv = n2 - n0;
             n_shading = sign * n;
-            si.dn_du = sign * (dN_du - n * n.dot(dN_du)) / length;
-            si.dn_dv = sign * (dN_dv - n * n.dot(dN_dv)) / length;
+            si.dn_du = (sign * inv_length) * (dN_du - n * n.dot(dN_du));
+            si.dn_dv = (sign * inv_length) * (dN_dv - n * n.dot(dN_dv));
         }
+        si.shading = Frame::from_normal_and_tangent(n_shading, si.dp_du);
     }
-    si.shading = Frame::from_normal_and_tangent(n_shading, si.dp_du);
     if (!mesh.uvs.empty())
         si.uv = b0 * mesh.uvs[i0] + b.x() * mesh.uvs[i1] + b.y() * mesh.uvs[i2];
     else
         si.uv = b;
-    return si;
 }
 
-/// Sphere parametrised by u = phi / 2pi, v = theta / pi around the world z axis.
-SurfaceInteraction sphere_interaction_at_direction(const Sphere& sphere, const Vec3f& dir) {
+/// Sphere parametrised by u = phi / 2pi, v = theta / pi around the world z axis; fills `si`
+/// (default-constructed) at unit direction `dir` from the centre.
+void fill_sphere_interaction(const Sphere& sphere, const Vec3f& dir, SurfaceInteraction& si) {
     const float r = sphere.radius;
     const float cos_theta = std::clamp(dir.z(), -1.f, 1.f);
     const float sin_theta = safe_sqrt(1.f - cos_theta * cos_theta);
@@ -67,7 +81,6 @@ SurfaceInteraction sphere_interaction_at_direction(const Sphere& sphere, const V
     if (phi < 0.f) phi += 2.f * kPi;
     const float cos_phi = std::cos(phi), sin_phi = std::sin(phi);
 
-    SurfaceInteraction si;
     si.p = sphere.center + r * dir;
     si.surface_param = Vec2f(phi / (2.f * kPi), std::acos(cos_theta) / kPi);
     si.uv = si.surface_param;
@@ -78,7 +91,6 @@ SurfaceInteraction sphere_interaction_at_direction(const Sphere& sphere, const V
     si.dn_du = sign * si.dp_du / r;
     si.dn_dv = sign * si.dp_dv / r;
     si.shading = Frame::from_normal_and_tangent(si.n_geometric, si.dp_du);
-    return si;
 }
 
 }  // namespace
@@ -87,9 +99,11 @@ Shape::Shape(TriangleMesh mesh, int bsdf, std::string id)
     : geometry_(std::move(mesh)), bsdf_(bsdf), id_(std::move(id)) {
     const auto& m = std::get<TriangleMesh>(geometry_);
     std::vector<float> areas(m.triangle_count());
+    face_normals_.resize(m.triangle_count());
     double total = 0.0;
     for (std::size_t t = 0; t < areas.size(); ++t) {
         areas[t] = triangle_area(m, t);
+        face_normals_[t] = face_normal(m, t);
         total += areas[t];
     }
     area_ = static_cast<float>(total);
@@ -104,9 +118,10 @@ Shape::Shape(Sphere sphere, int bsdf, std::string id)
 SurfaceInteraction Shape::interaction(std::uint32_t primitive, const Vec2f& barycentric,
                                       const Vec3f& ray_origin, const Vec3f& ray_direction,
                                       float t) const {
+    // One object filled in place and returned by name (NRVO): no 136-byte copies per hit.
     SurfaceInteraction si;
     if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
-        si = mesh_interaction(*mesh, primitive, barycentric);
+        fill_mesh_interaction(*mesh, face_normals_[primitive], primitive, barycentric, si);
     } else {
         const auto& sphere = std::get<Sphere>(geometry_);
         // Project the hit back onto the sphere: exact normal, position error ~ ulp(|p|).
@@ -114,31 +129,38 @@ SurfaceInteraction Shape::interaction(std::uint32_t primitive, const Vec2f& bary
         Vec3f dir = hit - sphere.center;
         const float length = dir.norm();
         dir = length > 0.f ? Vec3f(dir / length) : Vec3f::UnitZ();
-        si = sphere_interaction_at_direction(sphere, dir);
+        fill_sphere_interaction(sphere, dir, si);
     }
     si.t = t;
     return si;
 }
 
 SurfaceInteraction Shape::interaction_at(std::uint32_t primitive, const Vec2f& param) const {
-    if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_))
-        return mesh_interaction(*mesh, primitive, param);
-    const auto& sphere = std::get<Sphere>(geometry_);
-    const float phi = 2.f * kPi * param.x(), theta = kPi * param.y();
-    const Vec3f dir(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
-                    std::cos(theta));
-    return sphere_interaction_at_direction(sphere, dir);
+    SurfaceInteraction si;
+    if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
+        fill_mesh_interaction(*mesh, face_normals_[primitive], primitive, param, si);
+    } else {
+        const auto& sphere = std::get<Sphere>(geometry_);
+        const float phi = 2.f * kPi * param.x(), theta = kPi * param.y();
+        const Vec3f dir(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                        std::cos(theta));
+        fill_sphere_interaction(sphere, dir, si);
+    }
+    return si;
 }
 
 ShapeSample Shape::sample_area(const Vec2f& u, float u_primitive) const {
     ShapeSample s;
     if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
         if (!triangle_areas_.valid()) return s;
-        const auto triangle = static_cast<std::uint32_t>(triangle_areas_.sample(u_primitive));
-        const SurfaceInteraction si =
-            mesh_interaction(*mesh, triangle, warp::square_to_uniform_triangle(u));
-        s.p = si.p;
-        s.n_geometric = si.n_geometric;
+        const auto triangle = static_cast<std::size_t>(triangle_areas_.sample(u_primitive));
+        // Only the point and the face normal: an emitter sample needs no shading frame or
+        // differentials (this runs once per path vertex, as often as a ray cast).
+        const Vec2f b = warp::square_to_uniform_triangle(u);
+        const std::uint32_t* index = &mesh->indices[3 * triangle];
+        s.p = (1.f - b.x() - b.y()) * mesh->positions[index[0]] +
+              b.x() * mesh->positions[index[1]] + b.y() * mesh->positions[index[2]];
+        s.n_geometric = face_normals_[triangle];
     } else {
         const auto& sphere = std::get<Sphere>(geometry_);
         const Vec3f dir = warp::square_to_uniform_sphere(u);

@@ -43,7 +43,8 @@ inline Frame Frame::from_normal_and_tangent(const Vec3f& n, const Vec3f& dpdu) {
     if (!(len2 > 1e-12f * std::max(dpdu.squaredNorm(), 1e-30f))) return from_normal(n);
     Frame f;
     f.n = n;
-    f.s = s / std::sqrt(len2);
+    // One division instead of three: this runs once per ray hit.
+    f.s = s * (1.f / std::sqrt(len2));
     f.t = n.cross(f.s);
     return f;
 }

@@ -49,6 +49,11 @@ inline constexpr int kCameraDimensions = 2;
 Rgb sample_path_radiance(const Scene& scene, const Ray& camera_ray, SampleStream& stream,
                          const PathSamplerSettings& settings, PathCounters& counters);
 
+/// The same estimator driven by an IndependentStream without virtual calls (the path tracer's
+/// inner loop); gives bit-identical results to the overload above for the same stream state.
+Rgb sample_path_radiance(const Scene& scene, const Ray& camera_ray, IndependentStream& stream,
+                         const PathSamplerSettings& settings, PathCounters& counters);
+
 /// Power heuristic with exponent 2 (Veach 1997, eq. 9.13), safe for zero and infinite pdfs.
 inline float power_heuristic(float pdf_a, float pdf_b) {
     const float a2 = pdf_a * pdf_a, b2 = pdf_b * pdf_b;

@@ -117,6 +117,9 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
                               y1 = std::min(y0 + kTileSize, height);
                     for (int y = y0; y < y1; ++y) {
                         for (int x = x0; x < x1; ++x) {
+                            // Polled per pixel, not per tile: a tile of a high-spp pass can
+                            // take minutes, and Ctrl-C must stop the render promptly.
+                            if (cancelled()) return;
                             const int film_x = x + film.crop_offset_x,
                                       film_y = y + film.crop_offset_y;
                             const auto pixel =
