@@ -6,6 +6,10 @@ several time budgets, printed as a Markdown table and plotted as error-vs-time c
     bench/equal_time.py --scenes cbox_glass_sphere caustic_glass_light \\
                         --integrators path pssmlt --times 5 10 20
 
+An integrator may carry options as a variant, `NAME:KEY=VALUE[,KEY=VALUE...]`, which adds
+`--KEY VALUE` to that run only, e.g. `--integrators gdpt gdpt:shift=reconnect` compares GDPT with
+and without the manifold shift in one run.
+
 Every run is `gdmlt render SCENE --integrator I --time T -t THREADS` on the scene files in
 scenes/, compared with ../shared/references/SCENE.exr (metric: bench/metrics.py). Each
 configuration runs --repeats times with different seeds; the table gives the median relMSE,
@@ -24,12 +28,26 @@ import metrics  # noqa: E402
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
+def parse_variant(spec):
+    """'gdpt:shift=reconnect,foo=1' -> ('gdpt', ['--shift', 'reconnect', '--foo', '1'])."""
+    name, _, options = spec.partition(":")
+    args = []
+    for option in filter(None, options.split(",")):
+        key, sep, value = option.partition("=")
+        if not sep:
+            raise SystemExit(f"integrator variant option without a value: {option!r} in {spec!r}")
+        args += [f"--{key}", value]
+    return name, args
+
+
 def render(binary, scene, integrator, seconds, threads, seed, out_dir, extra):
-    stem = f"{os.path.basename(scene)[:-4]}_{integrator}_{seconds:g}s_seed{seed}"
+    integrator, variant_args = parse_variant(integrator)
+    tag = "_".join(a.lstrip("-") for a in variant_args)
+    stem = f"{os.path.basename(scene)[:-4]}_{integrator}{'_' + tag if tag else ''}_{seconds:g}s_seed{seed}"
     exr = os.path.join(out_dir, stem + ".exr")
     stats = os.path.join(out_dir, stem + ".json")
     cmd = [binary, "render", scene, "--integrator", integrator, "--time", str(seconds), "-t", str(threads),
-           "--seed", str(seed), "-o", exr, "--stats", stats, "-q"] + extra
+           "--seed", str(seed), "-o", exr, "--stats", stats, "-q"] + variant_args + extra
     subprocess.run(cmd, check=True)
     with open(stats) as f:
         return exr, json.load(f)
@@ -59,7 +77,7 @@ def main():
                                         seconds, args.threads, seed, args.out, args.extra.split())
                     error = metrics.rel_mse(metrics.read_rgb(exr), reference)
                     results.setdefault((scene, integrator, seconds), []).append(error)
-                    print(f"{scene:22s} {integrator:8s} {seconds:6g} s  relMSE {error:.5f}  "
+                    print(f"{scene:22s} {integrator:20s} {seconds:6g} s  relMSE {error:.5f}  "
                           f"(wall {stats.get('render_s', 0):.1f} s)", flush=True)
 
     print()

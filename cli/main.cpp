@@ -59,6 +59,7 @@ struct RenderOptions {
     std::optional<int> chains;
     std::optional<int> bootstrap;
     std::optional<double> mpp;
+    std::optional<int> direct_samples;
     // Gradient-domain knobs.
     std::string reconstruct_method;
     std::optional<double> alpha;
@@ -182,6 +183,7 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
     if (options.chains) settings.chains = *options.chains;
     if (options.bootstrap) settings.bootstrap_samples = *options.bootstrap;
     if (options.mpp) settings.mutations_per_pixel = *options.mpp;
+    if (options.direct_samples) settings.direct_samples = *options.direct_samples;
     // --spp gives a PSSMLT budget of as many mutations per pixel.
     if (!options.mpp && options.spp > 0) settings.mutations_per_pixel = options.spp;
     settings.time_budget_s = options.time_s;
@@ -203,6 +205,7 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
         {"chains", settings.chains},
         {"bootstrap_samples", settings.bootstrap_samples},
         {"kelemen_style_weights", settings.kelemen_weights},
+        {"direct_samples", settings.direct_samples},
         {"max_depth", settings.path.max_depth},
         {"rr_depth", settings.path.rr_depth},
         {"hide_emitters", settings.path.hide_emitters}};
@@ -219,6 +222,7 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
         {"render_s", s.total_s},
         {"bootstrap_s", s.bootstrap_s},
         {"chains_s", s.chains_s},
+        {"direct_s", s.direct_s},
         {"chains", s.chains},
         {"mutations", s.mutations},
         {"mutations_per_s", s.chains_s > 0 ? static_cast<double>(s.mutations) / s.chains_s : 0.0},
@@ -318,7 +322,10 @@ IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, Prog
           {"by_status", by_status},
           {"reconnections", s.shifts.reconnections},
           {"half_vector_steps", s.shifts.half_vector_steps},
-          {"replay_steps", s.shifts.replay_steps}}},
+          {"replay_steps", s.shifts.replay_steps},
+          {"manifold_shifts", s.shifts.manifold_shifts},
+          {"manifold_walks", s.shifts.manifold_walks},
+          {"manifold_newton_iterations", s.shifts.manifold_iterations}}},
         {"nonfinite_samples_dropped", s.nonfinite_dropped}};
     return r;
 }
@@ -367,12 +374,13 @@ int run_render(const RenderOptions& options) {
         {"shift_mappings", integrator == "gdpt"},
         {"half_vector_or_replay_through_specular",
          integrator == "gdpt" && scene.features().specular_chains_possible},
-        {"manifold_solver", false},
-        {"why", scene.features().specular_chains_possible
-                    ? "specular chains are possible; the manifold shift is not wired into " +
-                          integrator + " yet"
-                    : "no delta or glossy surface: no specular chain can occur, no half-vector or "
-                      "manifold code runs"}};
+        {"manifold_solver", integrator == "gdpt" && scene.features().specular_chains_possible},
+        {"why",
+         scene.features().specular_chains_possible
+             ? "specular chains are possible: the gdpt auto shift walks them (path and pssmlt "
+               "never need it)"
+             : "no delta or glossy surface: no specular chain can occur, no half-vector or "
+               "manifold code runs"}};
 
     ExrAttributes attributes;
     attributes["gdmlt/config"] = config.dump();
@@ -474,6 +482,13 @@ int main(int argc, char** argv) {
                            "PSSMLT: bootstrap samples estimating b (100000)");
     render_cmd->add_option("--mpp", render.mpp,
                            "PSSMLT: mutations per pixel (default 64, or --spp)");
+    render_cmd->add_option("--direct-samples", render.direct_samples,
+                           "PSSMLT: render direct illumination separately with N path-traced spp");
+    render_cmd->add_option("--reconstruct", render.reconstruct_method,
+                           "Gradient domain: l1 | l2 | cv (l1)");
+    render_cmd->add_option("--alpha", render.alpha, "Gradient domain: weight of the primal (0.2)");
+    render_cmd->add_option("--shift", render.shift,
+                           "Gradient domain: auto | reconnect | halfvector | replay");
 
     std::string info_scene;
     std::vector<std::string> info_defines;

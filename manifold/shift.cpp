@@ -3,6 +3,11 @@
 
 #include <cmath>
 
+#include "manifold/chain_trace.h"
+#include "manifold/generalized_geometry.h"
+#include "manifold/manifold_walk.h"
+#include "manifold/specular_chain.h"
+
 namespace gdmlt::manifold {
 
 const char* to_string(ShiftStatus status) {
@@ -19,6 +24,22 @@ const char* to_string(ShiftStatus status) {
             return "lobe_changed";
         case ShiftStatus::TotalInternalReflection:
             return "total_internal_reflection";
+        case ShiftStatus::ManifoldNotConverged:
+            return "manifold_not_converged";
+        case ShiftStatus::ManifoldDistanceIncreased:
+            return "manifold_distance_increased";
+        case ShiftStatus::ManifoldOccluded:
+            return "manifold_occluded";
+        case ShiftStatus::ManifoldLeftManifold:
+            return "manifold_left_manifold";
+        case ShiftStatus::ManifoldTotalInternalReflection:
+            return "manifold_total_internal_reflection";
+        case ShiftStatus::ManifoldSingularMatrix:
+            return "manifold_singular_matrix";
+        case ShiftStatus::ManifoldDegenerateChain:
+            return "manifold_degenerate_chain";
+        case ShiftStatus::ManifoldNotReversible:
+            return "manifold_not_reversible";
         case ShiftStatus::Count:
             break;
     }
@@ -45,6 +66,9 @@ ShiftCounters& ShiftCounters::operator+=(const ShiftCounters& o) {
     reconnections += o.reconnections;
     half_vector_steps += o.half_vector_steps;
     replay_steps += o.replay_steps;
+    manifold_walks += o.manifold_walks;
+    manifold_shifts += o.manifold_shifts;
+    manifold_iterations += o.manifold_iterations;
     return *this;
 }
 
@@ -108,6 +132,174 @@ bool evaluate_continuation(const Scene& scene, PathVertex& y, const Vec3f& from,
     const float side = y.si.n_geometric.dot(to_world) * y.si.n_geometric.dot(wo_world);
     y.transmission = side < 0.f;
     return y.pdf > 0.f && std::isfinite(y.pdf) && is_finite(y.f);
+}
+
+ShiftStatus manifold_status(WalkFailure failure) {
+    switch (failure) {
+        case WalkFailure::None:
+            return ShiftStatus::Ok;
+        case WalkFailure::NotConverged:
+            return ShiftStatus::ManifoldNotConverged;
+        case WalkFailure::DistanceIncreased:
+            return ShiftStatus::ManifoldDistanceIncreased;
+        case WalkFailure::Occluded:
+            return ShiftStatus::ManifoldOccluded;
+        case WalkFailure::LeftManifold:
+            return ShiftStatus::ManifoldLeftManifold;
+        case WalkFailure::TotalInternalReflection:
+            return ShiftStatus::ManifoldTotalInternalReflection;
+        case WalkFailure::SingularMatrix:
+            return ShiftStatus::ManifoldSingularMatrix;
+        case WalkFailure::DegenerateChain:
+            return ShiftStatus::ManifoldDegenerateChain;
+    }
+    return ShiftStatus::ManifoldDegenerateChain;
+}
+
+/// The walk back from the offset chain must return every base chain vertex within this
+/// fraction of the chain's length (a different solution of the same constraints is a
+/// different map, and the inverse shift would not be its inverse).
+constexpr double kReversibilityTolerance = 1e-6;
+
+/// The light-side end of the delta chain that follows base vertex k, when the manifold shift
+/// applies there: x_k is connectable, x_{k+1} .. x_{m-1} are delta surfaces left through delta
+/// lobes, and x_m is a diffuse surface that is connectable or ends the path. 0 otherwise.
+/// Depends only on the classes of the path's vertices, which the shift preserves, so the
+/// inverse shift takes the same decision.
+std::size_t manifold_chain_end(const Path& base, std::size_t k) {
+    const std::size_t n = base.vertices.size();
+    if (!base.vertices[k].connectable() || k + 2 >= n) return 0;
+    std::size_t m = k + 1;
+    while (m < n && base.vertices[m].roughness == RoughnessClass::Delta &&
+           base.vertices[m].continued && base.vertices[m].delta)
+        ++m;
+    if (m == k + 1 || m >= n) return 0;
+    const PathVertex& end = base.vertices[m];
+    if (end.roughness != RoughnessClass::Diffuse || !(end.connectable() || !end.continued))
+        return 0;
+    return m;
+}
+
+/// The manifold shift at base vertex k with chain end m (manifold_chain_end): the offset's
+/// vertex y_k (the last of `y`, already traced) is joined to the base's x_m through the
+/// base's delta chain, walked so that every vertex keeps its (delta: normal) half vector;
+/// x_m and everything after it is shared. Appends the offset's vertices k+1 .. n-1 and their
+/// log Jacobians, sets log_jacobian[k].
+///
+/// Jacobian of the direction leaving y_k per direction leaving x_k: both map to the same
+/// area element at the pinned x_m, so
+///     dw_y / dw_x = (dw_y / dA_m) / (dw_x / dA_m),
+/// each factor the solid angle per area through the chain (the generalized geometry term
+/// without the cosine at the moving end; with an empty chain this is the reconnection's
+/// cos'/d'^2 / (cos/d^2)). Delta vertices contribute no Jacobian (Dirac measure), and the
+/// directions leaving x_m and beyond are shared (Jacobian 1).
+ShiftStatus manifold_shift(const Scene& scene, const Path& base, std::size_t k, std::size_t m,
+                           Path& y, std::vector<double>& log_jacobian, ShiftCounters& counters) {
+    const std::size_t n = base.vertices.size();
+    const PathVertex& xk = base.vertices[k];
+    const PathVertex& xm = base.vertices[m];
+    PathVertex& yk = y.vertices.back();
+
+    // The base chain, oriented from the pinned x_m (walk start) to x_k (the moving end).
+    std::vector<SurfaceInteraction> specular;
+    for (std::size_t j = m - 1; j > k; --j) specular.push_back(base.vertices[j].si);
+    const ChainOutcome built =
+        build_chain(scene, endpoint_at(scene, xm.si), specular, endpoint_at(scene, xk.si));
+    if (!built.ok()) return manifold_status(built.failure);
+    // The float vertices satisfy the half-vector constraints only to float precision, which
+    // the chain amplifies (1e-4 of the scene at the end of a glass sphere's chain). Make the
+    // base chain exact in double first: trace it from x_m through x_{m-1} and walk its end back
+    // onto x_k. Both shift directions start from such exact chains, so the reversibility check
+    // below can be tight.
+    const ManifoldConfig config{};
+    const SpecularChain& raw = built.chain;
+    const ChainOutcome traced =
+        project_chain(scene, raw, (raw.vertices[0].geometry.p - raw.start.p).normalized(),
+                      end_plane(raw.end.p, raw.end.n_geometric));
+    if (!traced.ok()) return manifold_status(traced.failure);
+    const WalkResult polished = walk(scene, traced.chain, raw.end, config);
+    counters.manifold_iterations += static_cast<std::uint64_t>(polished.iterations);
+    if (!polished.ok()) return manifold_status(polished.failure);
+    const SpecularChain& chain = polished.chain;
+    const LogTerm base_term = log_solid_angle_per_area(chain.reversed());
+    if (!base_term.ok()) return manifold_status(base_term.failure);
+
+    ++counters.manifold_walks;
+    const WalkResult there = walk(scene, chain, endpoint_at(scene, yk.si), config);
+    counters.manifold_iterations += static_cast<std::uint64_t>(there.iterations);
+    if (!there.ok()) return manifold_status(there.failure);
+    const SpecularChain& walked = there.chain;
+
+    // Invertibility: the walk from the offset chain back to x_k must find the base's chain.
+    const WalkResult back = walk(scene, walked, endpoint_at(scene, xk.si), config);
+    counters.manifold_iterations += static_cast<std::uint64_t>(back.iterations);
+    if (!back.ok()) return ShiftStatus::ManifoldNotReversible;
+    const double tolerance = kReversibilityTolerance * chain.length();
+    for (std::size_t i = 0; i < chain.size(); ++i)
+        if ((back.chain.vertices[i].geometry.p - chain.vertices[i].geometry.p).norm() > tolerance)
+            return ShiftStatus::ManifoldNotReversible;
+
+    const LogTerm offset_term = log_solid_angle_per_area(walked.reversed());
+    if (!offset_term.ok()) return manifold_status(offset_term.failure);
+
+    // Offset vertex j (k < j < m) is walked vertex m - 1 - j; positions in double.
+    auto position = [&](std::size_t j) -> Vec3d {
+        if (j == k) return walked.end.p;
+        if (j == m) return walked.start.p;
+        return walked.vertices[m - 1 - j].geometry.p;
+    };
+    const Vec3f from = previous_position(y, k);
+    const Vec3f dir_k = (position(k + 1) - position(k)).normalized().cast<float>();
+    if (!evaluate_continuation(scene, yk, from, dir_k) || yk.transmission)
+        return ShiftStatus::ManifoldOccluded;
+
+    std::vector<PathVertex> added;
+    for (std::size_t j = k + 1; j < m; ++j) {
+        const ChainVertex& cv = walked.vertices[m - 1 - j];
+        const PathVertex& xj = base.vertices[j];
+        PathVertex v;
+        v.si = to_interaction(scene.shapes()[static_cast<std::size_t>(cv.geometry.shape)],
+                              cv.geometry);
+        const Bsdf& bsdf = scene.bsdf_of(v.si);
+        v.roughness = bsdf.roughness_class();
+        if (v.roughness != xj.roughness) return ShiftStatus::ClassificationChanged;
+        const Vec3d p = position(j);
+        const Vec3f wo_world = (position(j - 1) - p).normalized().cast<float>();
+        v.wi_world = (position(j + 1) - p).normalized().cast<float>();
+        // The walked chain fixes reflection versus refraction; the lobe's weight and
+        // probability are the offset's own (its Fresnel term at its own angle).
+        const BsdfSample bs = bsdf.sample(v.si.uv, v.si.shading.to_local(wo_world),
+                                          cv.reflection ? 0.f : 1.f, xj.u_direction);
+        if (!bs.valid() || !bs.delta || bs.transmission == cv.reflection)
+            return cv.reflection ? ShiftStatus::LobeChanged
+                                 : ShiftStatus::ManifoldTotalInternalReflection;
+        v.continued = true;
+        v.u_lobe = xj.u_lobe;
+        v.u_direction = xj.u_direction;
+        v.pdf = bs.pdf_solid_angle;
+        v.f = bs.weight * bs.pdf_solid_angle;
+        v.delta = true;
+        v.transmission = bs.transmission;
+        shift_light_sample(scene, xj, v);
+        added.push_back(v);
+    }
+    for (PathVertex& v : added) {
+        y.vertices.push_back(v);
+        log_jacobian.push_back(0.0);
+    }
+    // From x_m on the paths coincide; x_m's continuation sees a new incoming direction.
+    for (std::size_t j = m; j < n; ++j) {
+        PathVertex shared = base.vertices[j];
+        if (j == m && shared.continued)
+            evaluate_continuation(scene, shared, y.vertices.back().si.p, shared.wi_world);
+        y.vertices.push_back(shared);
+        log_jacobian.push_back(0.0);
+    }
+    y.escaped = base.escaped;
+    y.escape_direction = base.escape_direction;
+    log_jacobian[k] = offset_term.log_value - base_term.log_value;
+    ++counters.manifold_shifts;
+    return ShiftStatus::Ok;
 }
 
 }  // namespace
@@ -200,6 +392,19 @@ ShiftResult shift_path(const Scene& scene, const Path& base, const Vec2f& film_o
             result.reconnected_at = static_cast<int>(k + 1);
             ++counters.reconnections;
             return finish(ShiftStatus::Ok, static_cast<int>(n));
+        }
+
+        // Manifold shift (Auto only, and only where the scene has specular surfaces).
+        if (kind == ShiftKind::Auto && scene.features().specular_chains_possible &&
+            yk.roughness == RoughnessClass::Diffuse) {
+            if (const std::size_t m = manifold_chain_end(base, k); m > 0) {
+                const ShiftStatus status =
+                    manifold_shift(scene, base, k, m, y, result.log_jacobian, counters);
+                if (status != ShiftStatus::Ok) return finish(status, static_cast<int>(k + 1));
+                result.reconnected_at = static_cast<int>(m);
+                result.manifold_chain_at = static_cast<int>(k + 1);
+                return finish(ShiftStatus::Ok, static_cast<int>(n));
+            }
         }
 
         // Half-vector copy / replay: sample the offset's BSDF with the base's random numbers.

@@ -19,9 +19,14 @@ namespace gdmlt::manifold {
 
 /// Which family of shifts to use (`--shift`). Auto (and Reconnect) reconnect at the first pair
 /// of connectable vertices and copy the half vector / replay the random numbers before it;
-/// HalfVector and Replay never reconnect. At a delta vertex the half-vector copy is the same
-/// map as replaying its lobe choice (mirror or refract the offset's own incident direction);
-/// at a diffuse vertex replay maps the same random numbers to the same local direction.
+/// HalfVector and Replay never reconnect. Auto also uses the manifold shift at a connectable
+/// vertex whose base successors form a delta chain ending at a connectable vertex or emitter
+/// (Manzi et al. 2014, sec. 4): the light-side end stays fixed and the chain is walked so that
+/// it connects the offset vertex to it with the base's half vectors. Reconnect replays through
+/// such chains instead (the comparison "without the manifold shift"). At a delta vertex the
+/// half-vector copy is the same map as replaying its lobe choice (mirror or refract the offset's
+/// own incident direction); at a diffuse vertex replay maps the same random numbers to the same
+/// local direction.
 enum class ShiftKind { Auto, Reconnect, HalfVector, Replay };
 
 enum class ShiftStatus : int {
@@ -31,6 +36,15 @@ enum class ShiftStatus : int {
     ClassificationChanged,    // an offset vertex has another roughness class than the base's
     LobeChanged,              // replaying the random numbers chose another lobe
     TotalInternalReflection,  // the base refracted, the offset cannot
+    // Manifold shift failures, named after the WalkFailure of the walk (or chain build):
+    ManifoldNotConverged,
+    ManifoldDistanceIncreased,
+    ManifoldOccluded,
+    ManifoldLeftManifold,
+    ManifoldTotalInternalReflection,
+    ManifoldSingularMatrix,
+    ManifoldDegenerateChain,
+    ManifoldNotReversible,  // walking the offset chain back did not return the base's chain
     Count
 };
 const char* to_string(ShiftStatus status);
@@ -45,12 +59,18 @@ struct ShiftResult {
     /// Offset vertices 0 .. valid_vertices-1 are valid: contributions that end there are usable.
     int valid_vertices = 0;
     int reconnected_at = -1;  // index of the first shared vertex, or -1
+    /// Manifold shift: index of the first walked chain vertex (the diffuse vertex before it
+    /// moved with the pixel), or -1. reconnected_at is then the chain's light-side end.
+    int manifold_chain_at = -1;
     ShiftStatus status = ShiftStatus::Ok;
 };
 
 struct ShiftCounters {
     std::array<std::uint64_t, static_cast<int>(ShiftStatus::Count)> by_status{};
     std::uint64_t shifts = 0, reconnections = 0, half_vector_steps = 0, replay_steps = 0;
+    /// Manifold shifts: walks attempted (the reversibility walk back not counted), successful
+    /// shifts, and projections of all walks (both directions).
+    std::uint64_t manifold_walks = 0, manifold_shifts = 0, manifold_iterations = 0;
     ShiftCounters& operator+=(const ShiftCounters& o);
 };
 

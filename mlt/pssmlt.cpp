@@ -10,6 +10,7 @@
 #include <chrono>
 #include <iostream>
 
+#include "core/render/render_path.h"
 #include "core/sampling/distribution_1d.h"
 #include "core/scene/properties.h"
 #include "mlt/primary_sample_vector.h"
@@ -203,6 +204,7 @@ PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator) 
     s.bootstrap_samples = static_cast<int>(props.get_int("bootstrap_samples", s.bootstrap_samples));
     s.mutations_per_pixel = props.get_float("mutations_per_pixel", s.mutations_per_pixel);
     s.kelemen_weights = props.get_bool("kelemen_style_weights", s.kelemen_weights);
+    s.direct_samples = static_cast<int>(props.get_int("direct_samples", s.direct_samples));
     props.check_all_read();
     validate_pssmlt_settings(s, integrator.desc.loc);
     return s;
@@ -221,9 +223,12 @@ void validate_pssmlt_settings(const PssmltSettings& s, const FileLoc& loc) {
         throw InputError(loc, "mutations_per_pixel must be positive");
 }
 
-PssmltOutput render_pssmlt(const Scene& scene, const PssmltSettings& settings,
+PssmltOutput render_pssmlt(const Scene& scene, const PssmltSettings& settings_in,
                            const std::atomic<bool>* cancel,
                            const std::function<void(double, double)>& progress) {
+    PssmltSettings settings = settings_in;
+    const bool separate_direct = settings.direct_samples > 0;
+    if (separate_direct) settings.path.min_depth = 3;
     const Clock::time_point start = Clock::now();
     const Film& film = scene.camera().film();
     const int width = film.crop_width, height = film.crop_height;
@@ -399,6 +404,21 @@ PssmltOutput render_pssmlt(const Scene& scene, const PssmltSettings& settings,
         const double scale = pixels / static_cast<double>(stats.mutations);
         for (std::size_t i = 0; i < accumulated.pixels.size(); ++i)
             out.image.pixels[i] = static_cast<float>(accumulated.pixels[i] * scale);
+    }
+    if (separate_direct && !stats.interrupted) {
+        // Direct illumination (paths of 1 and 2 segments) by the path tracer.
+        const Clock::time_point direct_start = Clock::now();
+        RenderSettings direct;
+        direct.spp = settings.direct_samples;
+        direct.seed = settings.seed ^ 0xD1EC7ULL;
+        direct.path = settings_in.path;
+        direct.path.max_depth =
+            settings_in.path.max_depth < 0 ? 2 : std::min(settings_in.path.max_depth, 2);
+        const RenderOutput d = render_path(scene, direct, cancel);
+        for (std::size_t i = 0; i < out.image.pixels.size(); ++i)
+            out.image.pixels[i] += d.image.pixels[i];
+        stats.counters += d.stats.counters;
+        stats.direct_s = seconds_since(direct_start);
     }
     stats.total_s = seconds_since(start);
     return out;

@@ -27,6 +27,10 @@ struct PssmltSettings {
     /// Kelemen's MIS of large steps with the chain (Kelemen et al. 2002, sec. 5; unbiased
     /// with p_large > 0); false: Veach's expected values only.
     bool kelemen_weights = true;
+    /// > 0: emitters seen directly and direct lighting are rendered separately by the path
+    /// tracer with this many samples per pixel, and the chains see only longer paths (Mitsuba's
+    /// pssmlt `directSamples`). -1 (default): the chains render everything.
+    int direct_samples = -1;
 };
 
 struct PssmltStats {
@@ -50,7 +54,7 @@ struct PssmltStats {
     std::uint64_t nonfinite_dropped = 0;
     std::uint64_t replay_mismatches = 0;  // chain start != bootstrap value (non-determinism)
     PathCounters counters;
-    double bootstrap_s = 0.0, chains_s = 0.0, total_s = 0.0;
+    double bootstrap_s = 0.0, chains_s = 0.0, direct_s = 0.0, total_s = 0.0;
     bool interrupted = false;
 };
 

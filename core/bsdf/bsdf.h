@@ -9,9 +9,13 @@
 //  - eval() returns f(wo, wi) * |cos theta_i|, the integrand in solid angle, so that a sample's
 //    weight is eval / pdf_solid_angle. Delta lobes return 0 from eval() and pdf().
 //  - TransportMode::Radiance for camera paths: refraction scales by 1/eta^2 (Veach 1997, 5.2).
+#include <algorithm>
+#include <memory>
 #include <optional>
+#include <string>
 #include <variant>
 
+#include "core/bsdf/microfacet.h"
 #include "core/bsdf/roughness_class.h"
 #include "core/math/types.h"
 #include "core/texture/texture.h"
@@ -27,7 +31,31 @@ struct BsdfSample {
     float eta = 1.f;  // relative index eta_t / eta_i crossed by this sample (1 for reflection)
     bool delta = false;
     bool transmission = false;
+    /// Class of the lobe that produced this sample (plastic: Delta for the coat's mirror
+    /// reflection, Diffuse for the base), so that shifts can decide per vertex.
+    RoughnessClass sampled_class = RoughnessClass::Diffuse;
     bool valid() const { return pdf_solid_angle > 0.f; }
+};
+
+/// Which kinds of lobes a BSDF has (a plastic has a diffuse and a delta or glossy lobe).
+struct BsdfLobes {
+    bool diffuse_reflection = false;
+    bool glossy_reflection = false;
+    bool glossy_transmission = false;
+    bool delta_reflection = false;
+    bool delta_transmission = false;
+    /// The least connectable class among the lobes (a plastic's mirror coat: Delta; a rough
+    /// lobe: its alpha's class), for deciding whether specular chains can occur.
+    RoughnessClass sharpest_class = RoughnessClass::Diffuse;
+    BsdfLobes& operator|=(const BsdfLobes& o) {
+        sharpest_class = std::max(sharpest_class, o.sharpest_class);
+        diffuse_reflection |= o.diffuse_reflection;
+        glossy_reflection |= o.glossy_reflection;
+        glossy_transmission |= o.glossy_transmission;
+        delta_reflection |= o.delta_reflection;
+        delta_transmission |= o.delta_transmission;
+        return *this;
+    }
 };
 
 struct DiffuseBsdf {
@@ -58,14 +86,103 @@ struct ConductorBsdf {
     RgbTexture specular_reflectance{Rgb::Ones()};
 };
 
-using BsdfModel = std::variant<DiffuseBsdf, DielectricBsdf, ThinDielectricBsdf, ConductorBsdf>;
+/// Microfacet roughness: distribution type and (possibly textured, possibly anisotropic)
+/// alphas; `sample_visible` chooses visible-normal sampling (the default, as in Mitsuba).
+struct MicrofacetRoughness {
+    MicrofacetType type = MicrofacetType::Beckmann;
+    FloatTexture alpha_u{0.1f};
+    FloatTexture alpha_v{0.1f};
+    bool sample_visible = true;
+
+    MicrofacetDistribution at(const Vec2f& uv) const {
+        return {type, alpha_u.eval(uv), alpha_v.eval(uv)};
+    }
+    /// The class of the sharpest place and direction: a lobe narrow along one axis cannot be
+    /// reconnected to, whatever its width along the other.
+    RoughnessClass roughness_class() const {
+        return classify_alpha(std::min(alpha_u.min_value(), alpha_v.min_value()));
+    }
+    RoughnessClass roughness_class_at(const Vec2f& uv) const {
+        return classify_alpha(std::min(alpha_u.eval(uv), alpha_v.eval(uv)));
+    }
+};
+
+/// Rough conductor (Walter et al. 2007 microfacet reflection, conductor Fresnel; Mitsuba's
+/// `roughconductor`). Front side only.
+struct RoughConductorBsdf {
+    MicrofacetRoughness roughness;
+    Rgb eta = Rgb::Zero();
+    Rgb k = Rgb::Ones();
+    bool perfect_mirror = true;
+    RgbTexture specular_reflectance{Rgb::Ones()};
+};
+
+/// Rough dielectric interface (Walter et al. 2007, reflection and refraction; Mitsuba's
+/// `roughdielectric`); eta = int_ior / ext_ior. Both sides.
+struct RoughDielectricBsdf {
+    MicrofacetRoughness roughness;
+    float eta = 1.5046f / 1.000277f;
+    RgbTexture specular_reflectance{Rgb::Ones()};
+    RgbTexture specular_transmittance{Rgb::Ones()};
+};
+
+/// Mitsuba's `plastic`: a smooth dielectric coat over a diffuse base, with the internal
+/// scattering between them in closed form (Weidlich & Wilkie 2007 style layering: the base's
+/// albedo is divided by 1 - F_dr, the diffuse Fresnel reflectance of the inside of the coat).
+/// Build with make_plastic(), which fills the derived members.
+struct PlasticBsdf {
+    float eta = 1.49f / 1.000277f;
+    RgbTexture diffuse_reflectance{Rgb::Constant(0.5f)};
+    RgbTexture specular_reflectance{Rgb::Ones()};
+    bool nonlinear = false;
+    // Derived:
+    float fdr_internal = 0.f;               // diffuse Fresnel reflectance seen from inside
+    float specular_sampling_weight = 0.5f;  // s_mean / (s_mean + d_mean), as Mitsuba
+};
+PlasticBsdf make_plastic(float eta, RgbTexture diffuse_reflectance, RgbTexture specular_reflectance,
+                         bool nonlinear);
+
+/// Per-angle energy of a rough dielectric coat (roughplastic's precomputation).
+struct RoughCoatTable {
+    static constexpr int kResolution = 64;  // over cos(theta) in [0, 1], as Mitsuba 3
+    float external_transmittance[kResolution] = {};
+    float internal_reflectance = 0.f;
+    float transmittance(float cos_theta) const;
+};
+
+/// Mitsuba's `roughplastic`: a rough dielectric coat (isotropic microfacet reflection) over a
+/// diffuse base; the coat's angular transmittance and internal reflectance are precomputed
+/// by quadrature over the visible normals. Build with make_rough_plastic().
+struct RoughPlasticBsdf {
+    MicrofacetType type = MicrofacetType::Beckmann;
+    float alpha = 0.1f;
+    bool sample_visible = true;
+    float eta = 1.49f / 1.000277f;
+    RgbTexture diffuse_reflectance{Rgb::Constant(0.5f)};
+    RgbTexture specular_reflectance{Rgb::Ones()};
+    bool nonlinear = false;
+    // Derived:
+    std::shared_ptr<const RoughCoatTable> table;
+    float specular_sampling_weight = 0.5f;
+};
+RoughPlasticBsdf make_rough_plastic(MicrofacetType type, float alpha, bool sample_visible,
+                                    float eta, RgbTexture diffuse_reflectance,
+                                    RgbTexture specular_reflectance, bool nonlinear);
+
+/// Diffuse Fresnel reflectance 2 int_0^1 F(mu, eta) mu dmu of a smooth interface with relative
+/// index eta (eta < 1: seen from the denser side, including total internal reflection).
+float fresnel_diffuse_reflectance(float eta);
+
+using BsdfModel =
+    std::variant<DiffuseBsdf, DielectricBsdf, ThinDielectricBsdf, ConductorBsdf, RoughConductorBsdf,
+                 RoughDielectricBsdf, PlasticBsdf, RoughPlasticBsdf>;
 
 /// A surface's scattering: one model on the front (normal side); `two_sided` mirrors the
 /// directions of back-side queries onto the front and uses `back` (or the front model when
 /// `back` is empty), as Mitsuba's `twosided` does. One-sided non-transmissive models are black
 /// from behind.
 class Bsdf {
-public:
+  public:
     Bsdf() = default;
     explicit Bsdf(BsdfModel front) : front_(std::move(front)) {}
     static Bsdf two_sided(BsdfModel front, std::optional<BsdfModel> back);
@@ -82,12 +199,17 @@ public:
     /// True when some lobe transmits.
     bool has_transmission() const;
     /// The roughness class of the surface, the most connectable lobe first
-    /// (diffuse > glossy > delta) as shifts need it; see roughness_class.h.
+    /// (diffuse > glossy > delta) as shifts need it; see roughness_class.h. With textured
+    /// roughness this is the class of the sharpest place on the surface (a summary for
+    /// SceneFeatures); per vertex use roughness_class_at(uv).
     RoughnessClass roughness_class() const;
+    RoughnessClass roughness_class_at(const Vec2f& uv) const;
+    /// Every kind of lobe that occurs on either side.
+    BsdfLobes lobes() const;
     const BsdfModel& front() const { return front_; }
     bool is_two_sided() const { return two_sided_; }
 
-private:
+  private:
     const BsdfModel& model_for(const Vec3f& wo, Vec3f* wo_flip, bool* flipped) const;
 
     BsdfModel front_;

@@ -60,12 +60,15 @@ inline float fresnel_conductor(float cos_theta_i, float eta, float k) {
 }
 
 inline Rgb fresnel_conductor(float cos_theta_i, const Rgb& eta, const Rgb& k) {
-    return {fresnel_conductor(cos_theta_i, eta[0], k[0]), fresnel_conductor(cos_theta_i, eta[1], k[1]),
+    return {fresnel_conductor(cos_theta_i, eta[0], k[0]),
+            fresnel_conductor(cos_theta_i, eta[1], k[1]),
             fresnel_conductor(cos_theta_i, eta[2], k[2])};
 }
 
 /// Mirror reflection about +z (local frame).
-inline Vec3f reflect_local(const Vec3f& w) { return {-w.x(), -w.y(), w.z()}; }
+inline Vec3f reflect_local(const Vec3f& w) {
+    return {-w.x(), -w.y(), w.z()};
+}
 
 /// Refraction about +z (local frame) given the outputs of fresnel_dielectric.
 inline Vec3f refract_local(const Vec3f& w, float cos_theta_t, float eta_ti) {

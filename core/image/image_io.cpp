@@ -244,7 +244,9 @@ void write_png_srgb(const std::string& path, const Image& rgb, float exposure_st
     rename_over(tmp, path);
 }
 
-Image read_image(const std::string& path) { return read_image(path, nullptr); }
+Image read_image(const std::string& path) {
+    return read_image(path, nullptr);
+}
 
 Image read_image(const std::string& path, ImageFileInfo* info) {
     if (!fs::exists(path)) throw InputError(path + ": file not found");

@@ -31,7 +31,10 @@ Rgb trace_path(const Scene& scene, const Ray& camera_ray, Stream& stream,
         const float u_lobe = stream.next_1d();
         const Vec2f u_bsdf = stream.next_2d();
         const float u_roulette = stream.next_1d();
-        const bool count_emission = !(depth == 0 && settings.hide_emitters);
+        // An emitter hit here ends a path of depth + 1 segments, next-event estimation from
+        // here one of depth + 2.
+        const bool count_emission =
+            !(depth == 0 && settings.hide_emitters) && depth + 1 >= settings.min_depth;
 
         if (!si.valid()) {
             if (scene.has_environment() && count_emission) {
@@ -63,7 +66,7 @@ Rgb trace_path(const Scene& scene, const Ray& camera_ray, Stream& stream,
         const Vec3f wo = si.shading.to_local(wo_world);
 
         // Next-event estimation: only where some lobe has a density.
-        if (!bsdf.is_delta()) {
+        if (!bsdf.is_delta() && depth + 2 >= settings.min_depth) {
             const EmitterSample es = scene.sample_emitter(si.p, u_emitter_choice, u_emitter);
             if (es.valid()) {
                 const Vec3f wi = si.shading.to_local(es.wi);

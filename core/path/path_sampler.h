@@ -16,6 +16,9 @@ struct PathSamplerSettings {
     int max_depth = -1;  // Mitsuba's meaning: longest contributing path in segments; -1 = none
     int rr_depth = 5;    // Russian roulette from this depth on
     bool hide_emitters = false;
+    /// Shortest contributing path, in segments: 3 leaves out emitters seen directly and direct
+    /// lighting (PSSMLT renders those separately when asked, as Mitsuba's pssmlt does).
+    int min_depth = 1;
 };
 
 /// Counters a path sampler increments; one per thread, summed at the end.

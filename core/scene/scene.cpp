@@ -5,12 +5,6 @@
 
 namespace gdmlt {
 
-const char* emitter_kind_name(const Emitter& e) {
-    if (std::holds_alternative<AreaEmitter>(e)) return "area";
-    if (std::holds_alternative<PointEmitter>(e)) return "point";
-    return "constant";
-}
-
 Scene::Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emitter> emitters,
              PerspectiveCamera camera, IntegratorSettings integrator, SamplerSettings sampler,
              SceneFeatures features, std::map<std::string, std::size_t> counts)
@@ -29,20 +23,63 @@ Scene::Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emi
     bounds_radius_ = std::max(0.5f * box.diagonal().norm(), 1e-6f);
 
     // Emitters are chosen proportionally to an estimate of their emitted power, so that bright
-    // lights get more shadow rays (pbrt-v4's PowerLightSampler does the same).
+    // lights get more shadow rays (pbrt-v4's PowerLightSampler). Lights at infinity (constant,
+    // envmap, directional) have a "power" only relative to an assumed receiver, the scene's
+    // bounding disk (pi r^2); most of it lands on places no camera path visits (the outside of
+    // walls, the underside of floors), and letting it compete with bounded lights starves them:
+    // on scenes/rough_metal_glass.xml the dim sky would take 78% of the shadow rays and double
+    // the error of the image. So, as pbrt-v4's BVHLightSampler does, the infinite lights as a
+    // group get the share of one more light, n_inf / (n_inf + 1), and power decides within
+    // each group.
+    const float disk_area = kPi * bounds_radius_ * bounds_radius_;
     std::vector<float> power(emitters_.size(), 0.f);
+    textured_emitter_triangles_.resize(emitters_.size());
     for (std::size_t i = 0; i < emitters_.size(); ++i) {
         const Emitter& e = emitters_[i];
         if (const auto* area = std::get_if<AreaEmitter>(&e)) {
-            power[i] = kPi * shapes_[static_cast<std::size_t>(area->shape)].surface_area() *
-                       luminance(area->radiance.max_value());
+            const Shape& shape = shapes_[static_cast<std::size_t>(area->shape)];
+            power[i] = kPi * shape.surface_area() * luminance(area->radiance.mean_value());
+            if (!area->radiance.is_constant())
+                if (const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry())) {
+                    std::vector<float> areas(mesh->triangle_count());
+                    for (std::size_t t = 0; t < areas.size(); ++t) {
+                        const Vec3f& a = mesh->positions[mesh->indices[3 * t]];
+                        const Vec3f& b = mesh->positions[mesh->indices[3 * t + 1]];
+                        const Vec3f& c = mesh->positions[mesh->indices[3 * t + 2]];
+                        areas[t] = 0.5f * (b - a).cross(c - a).norm();
+                    }
+                    textured_emitter_triangles_[i] = Distribution1D(areas);
+                }
         } else if (const auto* point = std::get_if<PointEmitter>(&e)) {
             power[i] = 4.f * kPi * luminance(point->intensity);
+        } else if (const auto* spot = std::get_if<SpotEmitter>(&e)) {
+            // The cone out to the middle of the falloff (pbrt-v4's SpotLight::Phi estimate).
+            const float half = 0.5f * (spot->cutoff_rad + spot->beam_width_rad);
+            power[i] = 2.f * kPi * (1.f - std::cos(half)) * luminance(spot->intensity);
+        } else if (const auto* directional = std::get_if<DirectionalEmitter>(&e)) {
+            power[i] = disk_area * luminance(directional->irradiance);
         } else if (const auto* constant = std::get_if<ConstantEmitter>(&e)) {
-            power[i] = 4.f * kPi * kPi * bounds_radius_ * bounds_radius_ *
-                       luminance(constant->radiance);
+            power[i] = disk_area * 4.f * kPi * luminance(constant->radiance);
+            infinite_emitters_.push_back(static_cast<int>(i));
+        } else if (const auto* envmap = std::get_if<EnvmapEmitter>(&e)) {
+            power[i] = disk_area * envmap->data->luminance_integral * envmap->scale;
             infinite_emitters_.push_back(static_cast<int>(i));
         }
+    }
+    std::vector<bool> at_infinity(emitters_.size(), false);
+    double finite_power = 0.0, infinite_power = 0.0;
+    int infinite_count = 0;
+    for (std::size_t i = 0; i < emitters_.size(); ++i) {
+        at_infinity[i] = is_infinite(emitters_[i]) || is_delta_direction(emitters_[i]);
+        (at_infinity[i] ? infinite_power : finite_power) += power[i];
+        infinite_count += at_infinity[i] ? 1 : 0;
+    }
+    if (finite_power > 0.0 && infinite_power > 0.0) {
+        const double infinite_share = infinite_count / (infinite_count + 1.0);
+        for (std::size_t i = 0; i < emitters_.size(); ++i)
+            power[i] = static_cast<float>(at_infinity[i]
+                                              ? infinite_share * power[i] / infinite_power
+                                              : (1.0 - infinite_share) * power[i] / finite_power);
     }
     emitter_selection_ = Distribution1D(power);
 }
@@ -67,34 +104,78 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
 
     if (const auto* area = std::get_if<AreaEmitter>(&e)) {
         const Shape& shape = shapes_[static_cast<std::size_t>(area->shape)];
-        const ShapeSample ps = shape.sample_area(u, u_remapped);
-        const Vec3f d = ps.p - ref_p;
+        Vec3f p, n;
+        Vec2f uv = Vec2f::Zero();
+        if (area->radiance.is_constant()) {
+            const ShapeSample ps = shape.sample_area(u, u_remapped);
+            p = ps.p;
+            n = ps.n_geometric;
+        } else {
+            // Textured radiance needs the uv of the point: sample uniformly by area through
+            // the shape's own parametrisation (same density 1 / area as sample_area).
+            SurfaceInteraction at;
+            const Distribution1D& triangles = textured_emitter_triangles_[index];
+            if (triangles.valid()) {
+                const auto t = static_cast<std::uint32_t>(triangles.sample(u_remapped));
+                at = shape.interaction_at(t, warp::square_to_uniform_triangle(u));
+            } else {
+                const Vec3f dir = warp::square_to_uniform_sphere(u);
+                float phi = std::atan2(dir.y(), dir.x());
+                if (phi < 0.f) phi += 2.f * kPi;
+                at = shape.interaction_at(
+                    0, Vec2f(phi * (0.5f * kInvPi), safe_acos(dir.z()) * kInvPi));
+            }
+            p = at.p;
+            n = at.n_geometric;
+            uv = at.uv;
+        }
+        const float area_total = shape.surface_area();
+        const Vec3f d = p - ref_p;
         const float dist2 = d.squaredNorm();
-        if (!(dist2 > 0.f) || !(ps.pdf_area > 0.f)) return EmitterSample{};
+        if (!(dist2 > 0.f) || !(area_total > 0.f)) return EmitterSample{};
         s.distance = std::sqrt(dist2);
         s.wi = d / s.distance;
-        s.p = ps.p;
-        s.n_geometric = ps.n_geometric;
-        const float cos_light = -ps.n_geometric.dot(s.wi);
+        s.p = p;
+        s.n_geometric = n;
+        const float cos_light = -n.dot(s.wi);
         if (cos_light <= 0.f) return EmitterSample{};  // back of a one-sided emitter
         // Area to solid angle: p_omega = p_A * d^2 / |cos theta_light|.
-        s.pdf_solid_angle = pmf * ps.pdf_area * dist2 / cos_light;
-        s.radiance = area->radiance.eval(Vec2f::Zero());
-    } else if (const auto* point = std::get_if<PointEmitter>(&e)) {
-        const Vec3f d = point->position - ref_p;
+        s.pdf_solid_angle = pmf * dist2 / (cos_light * area_total);
+        s.radiance = area->radiance.eval(uv);
+    } else if (is_delta_position(e)) {
+        const bool is_spot = std::holds_alternative<SpotEmitter>(e);
+        const Vec3f position =
+            is_spot ? std::get<SpotEmitter>(e).position : std::get<PointEmitter>(e).position;
+        const Vec3f d = position - ref_p;
         const float dist2 = d.squaredNorm();
         if (!(dist2 > 0.f)) return EmitterSample{};
         s.distance = std::sqrt(dist2);
         s.wi = d / s.distance;
-        s.p = point->position;
-        s.radiance = point->intensity / dist2;
+        s.p = position;
+        const Rgb intensity = is_spot ? std::get<SpotEmitter>(e).intensity_towards(-s.wi)
+                                      : std::get<PointEmitter>(e).intensity;
+        if (is_black(intensity)) return EmitterSample{};
+        s.radiance = intensity / dist2;
         s.pdf_solid_angle = pmf;
         s.delta = true;
+    } else if (const auto* directional = std::get_if<DirectionalEmitter>(&e)) {
+        s.wi = -directional->direction;
+        s.radiance = directional->irradiance;
+        s.pdf_solid_angle = pmf;
+        s.distance = kInfinity;
+        s.delta = true;
     } else {
-        const auto& constant = std::get<ConstantEmitter>(e);
-        s.wi = warp::square_to_uniform_sphere(u);
-        s.pdf_solid_angle = pmf * warp::square_to_uniform_sphere_pdf_solid_angle();
-        s.radiance = constant.radiance;
+        // An infinite emitter: a direction from its own sampler, then the radiance and density
+        // of all infinite emitters together (see the header).
+        if (const auto* envmap = std::get_if<EnvmapEmitter>(&e)) {
+            const EnvmapEmitter::Sample es = envmap->sample(u);
+            if (!(es.pdf_solid_angle > 0.f)) return EmitterSample{};
+            s.wi = es.direction;
+        } else {
+            s.wi = warp::square_to_uniform_sphere(u);
+        }
+        s.pdf_solid_angle = pdf_environment_solid_angle(s.wi);
+        s.radiance = environment(s.wi);
         s.distance = kInfinity;
     }
     if (!std::isfinite(s.pdf_solid_angle) || !is_finite(s.radiance)) return EmitterSample{};
@@ -109,10 +190,15 @@ Rgb Scene::emitted(const SurfaceInteraction& si, const Vec3f& w) const {
     return area.radiance.eval(si.uv);
 }
 
-Rgb Scene::environment(const Vec3f&) const {
+Rgb Scene::environment(const Vec3f& direction) const {
     Rgb sum = Rgb::Zero();
-    for (int index : infinite_emitters_)
-        sum += std::get<ConstantEmitter>(emitters_[static_cast<std::size_t>(index)]).radiance;
+    for (int index : infinite_emitters_) {
+        const Emitter& e = emitters_[static_cast<std::size_t>(index)];
+        if (const auto* envmap = std::get_if<EnvmapEmitter>(&e))
+            sum += envmap->eval(direction);
+        else
+            sum += std::get<ConstantEmitter>(e).radiance;
+    }
     return sum;
 }
 
@@ -128,11 +214,16 @@ float Scene::pdf_emitter_solid_angle(const Vec3f& ref_p, const SurfaceInteractio
     return pmf * dist2 / (cos_light * shape.surface_area());
 }
 
-float Scene::pdf_environment_solid_angle(const Vec3f&) const {
+float Scene::pdf_environment_solid_angle(const Vec3f& direction) const {
     float pdf = 0.f;
-    for (int index : infinite_emitters_)
-        pdf += emitter_selection_.pmf(static_cast<std::size_t>(index)) *
-               warp::square_to_uniform_sphere_pdf_solid_angle();
+    for (int index : infinite_emitters_) {
+        const Emitter& e = emitters_[static_cast<std::size_t>(index)];
+        const float pmf = emitter_selection_.pmf(static_cast<std::size_t>(index));
+        if (const auto* envmap = std::get_if<EnvmapEmitter>(&e))
+            pdf += pmf * envmap->pdf_solid_angle(direction);
+        else
+            pdf += pmf * warp::square_to_uniform_sphere_pdf_solid_angle();
+    }
     return pdf;
 }
 

@@ -33,7 +33,7 @@ struct SceneFeatures {
     /// A specular chain needs at least one delta or near-delta surface. When false, no
     /// manifold walk or half-vector shift can ever be needed.
     bool specular_chains_possible = false;
-    std::set<std::string> bsdf_kinds;     // Mitsuba plugin names that occur
+    std::set<std::string> bsdf_kinds;  // Mitsuba plugin names that occur
     std::set<std::string> emitter_kinds;
     std::set<std::string> shape_kinds;
 };
@@ -57,9 +57,9 @@ struct SamplerSettings {
 
 /// A point sampled on an emitter as seen from a reference point.
 struct EmitterSample {
-    Vec3f p = Vec3f::Zero();             // on the emitter (unused for infinite emitters)
-    Vec3f n_geometric = Vec3f::Zero();   // zero for point and infinite emitters
-    Vec3f wi = Vec3f::UnitZ();           // unit, from the reference point to the emitter
+    Vec3f p = Vec3f::Zero();            // on the emitter (unused for infinite emitters)
+    Vec3f n_geometric = Vec3f::Zero();  // zero for point and infinite emitters
+    Vec3f wi = Vec3f::UnitZ();          // unit, from the reference point to the emitter
     float distance = kInfinity;
     /// Radiance arriving at the reference point along -wi (for a point light: I / d^2).
     Rgb radiance = Rgb::Zero();
@@ -72,7 +72,7 @@ struct EmitterSample {
 };
 
 class Scene {
-public:
+  public:
     Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emitter> emitters,
           PerspectiveCamera camera, IntegratorSettings integrator, SamplerSettings sampler,
           SceneFeatures features, std::map<std::string, std::size_t> counts);
@@ -95,8 +95,13 @@ public:
     SurfaceInteraction intersect(const Ray& ray) const;
     bool occluded(const Ray& ray) const { return accelerator_->occluded(ray); }
 
-    /// Chooses an emitter (proportionally to its power) and a point on it, as seen from
-    /// `ref` (the point and its geometric normal, used for the ray offset only).
+    /// Chooses an emitter (proportionally to its power among bounded emitters; the lights at
+    /// infinity as a group get the share of one more light, see the constructor) and a point
+    /// on it, as seen from `ref_p` (used for the ray offset only). Infinite
+    /// emitters (constant, envmap) are sampled as one environment: a direction chosen through
+    /// any of them carries the radiance of all of them and their combined density, which is
+    /// what a BSDF-sampled ray that escapes sees (environment(), pdf_environment_solid_angle()),
+    /// so MIS weights agree on both sides.
     EmitterSample sample_emitter(const Vec3f& ref_p, float u_select, const Vec2f& u) const;
 
     /// Radiance leaving emitter surface point `si` towards direction `w` (unit, world).
@@ -109,12 +114,20 @@ public:
     /// Same for a direction that escaped to the infinite emitters.
     float pdf_environment_solid_angle(const Vec3f& direction) const;
     bool has_environment() const { return !infinite_emitters_.empty(); }
+    /// Probability that sample_emitter chooses emitter `index` (proportional to its estimated
+    /// power), for MIS weights of other samplers.
+    float emitter_selection_pmf(int index) const {
+        return emitter_selection_.pmf(static_cast<std::size_t>(index));
+    }
 
-private:
+  private:
     std::vector<Shape> shapes_;
     std::vector<Bsdf> bsdfs_;
     std::vector<Emitter> emitters_;
     std::vector<int> infinite_emitters_;
+    /// Per emitter: for area emitters with textured radiance on a mesh, the choice of triangle
+    /// by area (the uv of a sampled point is needed to look the radiance up); empty otherwise.
+    std::vector<Distribution1D> textured_emitter_triangles_;
     Distribution1D emitter_selection_;
     PerspectiveCamera camera_;
     IntegratorSettings integrator_;

@@ -19,21 +19,29 @@ std::string describe(const ObjectDesc& obj) {
 
 const char* value_kind(const PropertyValue& v) {
     switch (v.index()) {
-        case 0: return "boolean";
-        case 1: return "integer";
-        case 2: return "float";
-        case 3: return "string";
-        case 4: return "rgb";
-        case 5: return "point/vector";
-        case 6: return "transform";
-        case 7: return "spectrum";
+        case 0:
+            return "boolean";
+        case 1:
+            return "integer";
+        case 2:
+            return "float";
+        case 3:
+            return "string";
+        case 4:
+            return "rgb";
+        case 5:
+            return "point/vector";
+        case 6:
+            return "transform";
+        case 7:
+            return "spectrum";
     }
     return "?";
 }
 
 /// Reports problems that --lenient may turn into warnings.
 class Diagnostics {
-public:
+  public:
     explicit Diagnostics(bool lenient) : lenient_(lenient) {}
     void unknown(const FileLoc& loc, const std::string& message) const {
         if (!lenient_) throw InputError(loc, message);
@@ -44,14 +52,14 @@ public:
     }
     bool lenient() const { return lenient_; }
 
-private:
+  private:
     bool lenient_;
 };
 
 /// Typed access to an object's properties that remembers which were read, so that anything
 /// left unread (a misspelt or unsupported property) is reported with its location.
 class Properties {
-public:
+  public:
     Properties(const ObjectDesc& obj, const Diagnostics& diagnostics)
         : obj_(obj), diagnostics_(diagnostics) {}
 
@@ -123,10 +131,6 @@ public:
             throw InputError(p->loc, "'" + name + "' must not be negative");
         return value;
     }
-    /// A texture-capable RGB parameter (only constants so far: a nested <texture> is reported).
-    RgbTexture get_texture(const std::string& name, const Rgb& fallback) {
-        return RgbTexture(get_rgb(name, fallback));
-    }
     const FileLoc& loc_of(const std::string& name) const {
         const Property* p = obj_.find(name);
         return p ? p->loc : obj_.loc;
@@ -144,7 +148,7 @@ public:
         if (has(name)) used_.insert(name);
     }
 
-private:
+  private:
     const Property* take(const std::string& name) {
         const Property* p = obj_.find(name);
         if (p) used_.insert(name);
@@ -236,7 +240,7 @@ struct Builder {
     std::vector<Shape> shapes;
     std::vector<Bsdf> bsdfs;
     std::vector<Emitter> emitters;
-    std::map<int, int> bsdf_of_object;  // SceneDesc object index -> bsdfs index
+    std::map<int, int> bsdf_of_object;   // SceneDesc object index -> bsdfs index
     std::vector<std::string> bsdf_kind;  // per bsdfs entry, for SceneFeatures
     PerspectiveCamera camera;
     bool has_camera = false;
@@ -244,8 +248,141 @@ struct Builder {
     SamplerSettings sampler;
     SceneFeatures features;
     std::map<std::string, std::size_t> counts;
+    /// Loaded images by (file, raw), shared by every texture that names them.
+    std::map<std::pair<std::string, bool>, std::shared_ptr<const BitmapData>> bitmaps;
 
-    const ObjectDesc& object(int index) const { return desc.objects.at(static_cast<std::size_t>(index)); }
+    const ObjectDesc& object(int index) const {
+        return desc.objects.at(static_cast<std::size_t>(index));
+    }
+
+    /// Texture-capable parameters of one object: a property (constant) or a nested / referenced
+    /// `<texture name="...">` child. Remembers which children were consumed so that anything
+    /// else nested in the object is reported.
+    class TextureParams {
+      public:
+        TextureParams(Builder& builder, const ObjectDesc& obj, Properties& props)
+            : builder_(builder), obj_(obj), props_(props) {}
+
+        RgbTexture rgb(const std::string& name, const Rgb& fallback) {
+            if (const ChildRef* child = find(name)) {
+                if (props_.has(name))
+                    throw InputError(child->loc,
+                                     "'" + name + "' given both as a property and as a texture");
+                return builder_.build_texture(builder_.object(child->object));
+            }
+            return RgbTexture(props_.get_rgb(name, fallback));
+        }
+        FloatTexture scalar(const std::string& name, float fallback) {
+            if (const ChildRef* child = find(name)) {
+                if (props_.has(name))
+                    throw InputError(child->loc,
+                                     "'" + name + "' given both as a property and as a texture");
+                return FloatTexture(builder_.build_texture(builder_.object(child->object)));
+            }
+            return FloatTexture(static_cast<float>(props_.get_float(name, fallback)));
+        }
+        bool has(const std::string& name) {
+            return props_.has(name) || find_unmarked(name) != nullptr;
+        }
+        /// Reports nested elements that no parameter asked for.
+        void check_all_used() const {
+            for (std::size_t i = 0; i < obj_.children.size(); ++i)
+                if (!used_.count(i)) {
+                    const ObjectDesc& c = builder_.object(obj_.children[i].object);
+                    builder_.diagnostics.unknown(
+                        obj_.children[i].loc, "unexpected nested element " + describe(c) +
+                                                  (obj_.children[i].name.empty()
+                                                       ? ""
+                                                       : " named '" + obj_.children[i].name + "'") +
+                                                  " in " + describe(obj_));
+                }
+        }
+
+      private:
+        const ChildRef* find_unmarked(const std::string& name) const {
+            for (const ChildRef& c : obj_.children)
+                if (c.name == name && builder_.object(c.object).tag == "texture") return &c;
+            return nullptr;
+        }
+        const ChildRef* find(const std::string& name) {
+            for (std::size_t i = 0; i < obj_.children.size(); ++i) {
+                const ChildRef& c = obj_.children[i];
+                if (c.name == name && builder_.object(c.object).tag == "texture") {
+                    used_.insert(i);
+                    return &c;
+                }
+            }
+            return nullptr;
+        }
+
+        Builder& builder_;
+        const ObjectDesc& obj_;
+        Properties& props_;
+        std::set<std::size_t> used_;
+    };
+
+    static UvTransform read_uv_transform(Properties& props) {
+        const Transform t = props.get_transform("to_uv");
+        UvTransform uv;
+        uv.linear = t.matrix.topLeftCorner<2, 2>().cast<float>();
+        uv.offset = t.matrix.block<2, 1>(0, 3).cast<float>();
+        return uv;
+    }
+
+    RgbTexture build_texture(const ObjectDesc& obj) {
+        Properties props(obj, diagnostics);
+        features.has_textures = true;
+        if (!obj.children.empty())
+            diagnostics.unknown(object(obj.children.front().object).loc,
+                                "unexpected nested element in " + describe(obj));
+        if (obj.type == "bitmap") {
+            const std::string filename = props.get_string("filename", "");
+            if (filename.empty()) throw InputError(obj.loc, describe(obj) + " needs a 'filename'");
+            const bool raw = props.get_bool("raw", false);
+            BitmapTexture b;
+            const std::string filter = props.get_string("filter_type", "bilinear");
+            if (filter == "bilinear")
+                b.filter = FilterMode::Bilinear;
+            else if (filter == "nearest")
+                b.filter = FilterMode::Nearest;
+            else
+                throw InputError(props.loc_of("filter_type"),
+                                 "filter_type must be bilinear or nearest");
+            const std::string wrap = props.get_string("wrap_mode", "repeat");
+            if (wrap == "repeat")
+                b.wrap = WrapMode::Repeat;
+            else if (wrap == "mirror")
+                b.wrap = WrapMode::Mirror;
+            else if (wrap == "clamp")
+                b.wrap = WrapMode::Clamp;
+            else
+                throw InputError(props.loc_of("wrap_mode"),
+                                 "wrap_mode must be repeat, mirror or clamp");
+            b.to_uv = read_uv_transform(props);
+            props.check_all_used();
+            auto& cached = bitmaps[{filename, raw}];
+            if (!cached) {
+                try {
+                    cached = std::make_shared<const BitmapData>(load_bitmap(filename, raw));
+                } catch (const InputError& e) {
+                    throw InputError(props.loc_of("filename"), e.what());
+                }
+            }
+            b.data = cached;
+            return RgbTexture(TextureModel(b));
+        }
+        if (obj.type == "checkerboard") {
+            CheckerboardTexture c;
+            c.color0 = props.get_rgb("color0", Rgb::Constant(0.4f));
+            c.color1 = props.get_rgb("color1", Rgb::Constant(0.2f));
+            c.to_uv = read_uv_transform(props);
+            props.check_all_used();
+            return RgbTexture(TextureModel(c));
+        }
+        diagnostics.unknown(obj.loc,
+                            "unknown texture '" + obj.type + "' (supported: bitmap, checkerboard)");
+        return RgbTexture(Rgb::Constant(0.5f));
+    }
 
     void build_root() {
         const ObjectDesc& root = desc.root_object();
@@ -263,9 +400,12 @@ struct Builder {
             } else if (obj.tag == "integrator") {
                 build_integrator(obj);
             } else if (obj.tag == "texture") {
-                diagnostics.unknown(obj.loc, "textures are not supported yet: " + describe(obj));
+                // A declaration for later <ref>s; built where it is used. Validate it now so
+                // that errors in unused textures are still reported.
+                build_texture(obj);
             } else {
-                diagnostics.unknown(obj.loc, "unsupported element " + describe(obj) + " in <scene>");
+                diagnostics.unknown(obj.loc,
+                                    "unsupported element " + describe(obj) + " in <scene>");
             }
         }
         if (!has_camera) {
@@ -300,17 +440,20 @@ struct Builder {
 
     void build_sensor(const ObjectDesc& obj) {
         if (obj.type != "perspective")
-            throw InputError(obj.loc, "unsupported sensor '" + obj.type + "' (supported: perspective)");
+            throw InputError(obj.loc,
+                             "unsupported sensor '" + obj.type + "' (supported: perspective)");
         Properties props(obj, diagnostics);
         const auto fov = static_cast<float>(props.get_float("fov", 39.3077));
         const std::string fov_axis = props.get_string("fov_axis", "x");
         const auto near_clip = static_cast<float>(props.get_float("near_clip", 0.01));
         props.ignore("far_clip");
         const Transform world_from_camera = props.get_transform("to_world");
-        if (!(fov > 0.f && fov < 180.f)) throw InputError(props.loc_of("fov"), "fov must be in (0, 180)");
+        if (!(fov > 0.f && fov < 180.f))
+            throw InputError(props.loc_of("fov"), "fov must be in (0, 180)");
         static const std::set<std::string> axes = {"x", "y", "diagonal", "smaller", "larger"};
         if (!axes.count(fov_axis))
-            throw InputError(props.loc_of("fov_axis"), "fov_axis must be x, y, diagonal, smaller or larger");
+            throw InputError(props.loc_of("fov_axis"),
+                             "fov_axis must be x, y, diagonal, smaller or larger");
         props.check_all_used();
 
         Film film;
@@ -335,7 +478,8 @@ struct Builder {
 
     Film build_film(const ObjectDesc& obj) {
         if (obj.type != "hdrfilm")
-            diagnostics.unknown(obj.loc, "unsupported film '" + obj.type + "' (supported: hdrfilm)");
+            diagnostics.unknown(obj.loc,
+                                "unsupported film '" + obj.type + "' (supported: hdrfilm)");
         Properties props(obj, diagnostics);
         Film film;
         film.width = static_cast<int>(props.get_int("width", 768));
@@ -344,8 +488,10 @@ struct Builder {
             throw InputError(obj.loc, "film size must be between 1 and 65536 pixels");
         film.crop_offset_x = static_cast<int>(props.get_int("crop_offset_x", 0));
         film.crop_offset_y = static_cast<int>(props.get_int("crop_offset_y", 0));
-        film.crop_width = static_cast<int>(props.get_int("crop_width", film.width - film.crop_offset_x));
-        film.crop_height = static_cast<int>(props.get_int("crop_height", film.height - film.crop_offset_y));
+        film.crop_width =
+            static_cast<int>(props.get_int("crop_width", film.width - film.crop_offset_x));
+        film.crop_height =
+            static_cast<int>(props.get_int("crop_height", film.height - film.crop_offset_y));
         if (film.crop_offset_x < 0 || film.crop_offset_y < 0 || film.crop_width < 1 ||
             film.crop_height < 1 || film.crop_offset_x + film.crop_width > film.width ||
             film.crop_offset_y + film.crop_height > film.height)
@@ -369,17 +515,20 @@ struct Builder {
             }
         }
         if (!has_filter)
-            diagnostics.warn(obj.loc, "no <rfilter> given: Mitsuba would use a Gaussian, gdmlt uses box");
+            diagnostics.warn(obj.loc,
+                             "no <rfilter> given: Mitsuba would use a Gaussian, gdmlt uses box");
         return film;
     }
 
     void build_sampler(const ObjectDesc& obj) {
         if (obj.type != "independent")
-            diagnostics.unknown(obj.loc, "unsupported sampler '" + obj.type + "' (supported: independent)");
+            diagnostics.unknown(obj.loc,
+                                "unsupported sampler '" + obj.type + "' (supported: independent)");
         Properties props(obj, diagnostics);
         const std::int64_t spp = props.get_int("sample_count", 4);
         const std::int64_t seed = props.get_int("seed", 0);
-        if (spp < 1) throw InputError(props.loc_of("sample_count"), "sample_count must be positive");
+        if (spp < 1)
+            throw InputError(props.loc_of("sample_count"), "sample_count must be positive");
         props.check_all_used();
         sampler.sample_count = static_cast<int>(spp);
         sampler.seed = static_cast<std::uint64_t>(seed);
@@ -395,59 +544,133 @@ struct Builder {
             throw InputError(p->loc, "unknown named index of refraction '" + text + "'");
         }
         const auto v = static_cast<float>(props.get_float(name, fallback));
-        if (!(v > 0.f) || !std::isfinite(v)) throw InputError(p->loc, "'" + name + "' must be positive");
+        if (!(v > 0.f) || !std::isfinite(v))
+            throw InputError(p->loc, "'" + name + "' must be positive");
         return v;
+    }
+
+    /// Complex IOR of a conductor: eta/k given, a named material, or "none" (perfect mirror).
+    void read_conductor_ior(Properties& props, Rgb* eta, Rgb* k, bool* perfect_mirror) {
+        const std::string material = props.get_string("material", "none");
+        *perfect_mirror = true;
+        if (props.has("eta") || props.has("k")) {
+            *eta = props.get_rgb("eta", Rgb::Zero());
+            *k = props.get_rgb("k", Rgb::Ones());
+            *perfect_mirror = false;
+        } else if (material != "none") {
+            const auto ior = lookup_conductor(material);
+            if (!ior)
+                throw InputError(props.loc_of("material"),
+                                 "unknown conductor material '" + material +
+                                     "' (known: none, Ag, Al, Au, Cu, Cr)");
+            *eta = ior->eta;
+            *k = ior->k;
+            *perfect_mirror = false;
+        }
+    }
+
+    static MicrofacetType read_distribution(Properties& props) {
+        const std::string name = props.get_string("distribution", "beckmann");
+        if (name == "beckmann") return MicrofacetType::Beckmann;
+        if (name == "ggx") return MicrofacetType::Ggx;
+        throw InputError(props.loc_of("distribution"),
+                         "distribution must be beckmann or ggx (got '" + name + "')");
+    }
+
+    /// Mitsuba's microfacet parameters: distribution, alpha or (alpha_u and alpha_v), and
+    /// sample_visible. Alphas may be textures.
+    MicrofacetRoughness read_roughness(Properties& props, TextureParams& textures,
+                                       const ObjectDesc& obj) {
+        MicrofacetRoughness r;
+        r.type = read_distribution(props);
+        r.sample_visible = props.get_bool("sample_visible", true);
+        const bool anisotropic = textures.has("alpha_u") || textures.has("alpha_v");
+        if (anisotropic) {
+            if (textures.has("alpha"))
+                throw InputError(obj.loc, "give either alpha or alpha_u/alpha_v, not both");
+            if (!textures.has("alpha_u") || !textures.has("alpha_v"))
+                throw InputError(obj.loc, "alpha_u and alpha_v must be given together");
+            r.alpha_u = textures.scalar("alpha_u", 0.1f);
+            r.alpha_v = textures.scalar("alpha_v", 0.1f);
+        } else {
+            r.alpha_u = r.alpha_v = textures.scalar("alpha", 0.1f);
+        }
+        if (!(r.alpha_u.min_value() >= 0.f) || !(r.alpha_v.min_value() >= 0.f) ||
+            !std::isfinite(r.alpha_u.max_value()) || !std::isfinite(r.alpha_v.max_value()))
+            throw InputError(obj.loc, "roughness alpha must be finite and non-negative");
+        return r;
     }
 
     BsdfModel build_bsdf_model(const ObjectDesc& obj) {
         Properties props(obj, diagnostics);
+        TextureParams textures(*this, obj, props);
         BsdfModel model;
         if (obj.type == "diffuse") {
-            model = DiffuseBsdf{props.get_texture("reflectance", Rgb::Constant(0.5f))};
-        } else if (obj.type == "dielectric" || obj.type == "thindielectric") {
+            model = DiffuseBsdf{textures.rgb("reflectance", Rgb::Constant(0.5f))};
+        } else if (obj.type == "dielectric" || obj.type == "thindielectric" ||
+                   obj.type == "roughdielectric") {
             const float int_ior = read_ior(props, "int_ior", 1.5046f);
             const float ext_ior = read_ior(props, "ext_ior", 1.000277f);
-            const RgbTexture r = props.get_texture("specular_reflectance", Rgb::Ones());
-            const RgbTexture t = props.get_texture("specular_transmittance", Rgb::Ones());
-            if (obj.type == "dielectric")
+            const RgbTexture r = textures.rgb("specular_reflectance", Rgb::Ones());
+            const RgbTexture t = textures.rgb("specular_transmittance", Rgb::Ones());
+            if (obj.type == "dielectric") {
                 model = DielectricBsdf{int_ior / ext_ior, r, t};
-            else
+            } else if (obj.type == "thindielectric") {
                 model = ThinDielectricBsdf{int_ior / ext_ior, r, t};
-        } else if (obj.type == "conductor") {
-            ConductorBsdf c;
-            const std::string material = props.get_string("material", "none");
-            if (props.has("eta") || props.has("k")) {
-                c.eta = props.get_rgb("eta", Rgb::Zero());
-                c.k = props.get_rgb("k", Rgb::Ones());
-                c.perfect_mirror = false;
-            } else if (material != "none") {
-                const auto ior = lookup_conductor(material);
-                if (!ior)
-                    throw InputError(props.loc_of("material"), "unknown conductor material '" +
-                                                                   material + "' (known: none, Ag, Al, Au, Cu, Cr)");
-                c.eta = ior->eta;
-                c.k = ior->k;
-                c.perfect_mirror = false;
+            } else {
+                if (int_ior == ext_ior)
+                    throw InputError(obj.loc, "roughdielectric: int_ior and ext_ior must differ");
+                model = RoughDielectricBsdf{read_roughness(props, textures, obj), int_ior / ext_ior,
+                                            r, t};
             }
-            c.specular_reflectance = props.get_texture("specular_reflectance", Rgb::Ones());
-            model = c;
+        } else if (obj.type == "conductor" || obj.type == "roughconductor") {
+            Rgb eta = Rgb::Zero(), k = Rgb::Ones();
+            bool perfect_mirror = true;
+            read_conductor_ior(props, &eta, &k, &perfect_mirror);
+            const RgbTexture r = textures.rgb("specular_reflectance", Rgb::Ones());
+            if (obj.type == "conductor")
+                model = ConductorBsdf{eta, k, perfect_mirror, r};
+            else
+                model = RoughConductorBsdf{read_roughness(props, textures, obj), eta, k,
+                                           perfect_mirror, r};
+        } else if (obj.type == "plastic" || obj.type == "roughplastic") {
+            // Mitsuba's defaults: polypropylene (1.49) in air.
+            const float int_ior = read_ior(props, "int_ior", 1.49f);
+            const float ext_ior = read_ior(props, "ext_ior", 1.000277f);
+            if (int_ior == ext_ior)
+                throw InputError(obj.loc, obj.type + ": int_ior and ext_ior must differ");
+            RgbTexture diffuse = textures.rgb("diffuse_reflectance", Rgb::Constant(0.5f));
+            RgbTexture specular = textures.rgb("specular_reflectance", Rgb::Ones());
+            const bool nonlinear = props.get_bool("nonlinear", false);
+            if (obj.type == "plastic") {
+                model = make_plastic(int_ior / ext_ior, std::move(diffuse), std::move(specular),
+                                     nonlinear);
+            } else {
+                // Mitsuba's roughplastic is isotropic with a scalar alpha (its coat tables are
+                // precomputed per material); alpha_u / alpha_v are reported as unknown.
+                const MicrofacetType type = read_distribution(props);
+                const auto alpha = static_cast<float>(props.get_float("alpha", 0.1));
+                if (!(alpha >= 0.f) || !std::isfinite(alpha))
+                    throw InputError(props.loc_of("alpha"),
+                                     "alpha must be finite and non-negative");
+                const bool visible = props.get_bool("sample_visible", true);
+                model = make_rough_plastic(type, alpha, visible, int_ior / ext_ior,
+                                           std::move(diffuse), std::move(specular), nonlinear);
+            }
         } else {
             diagnostics.unknown(obj.loc, "unknown BSDF '" + obj.type +
                                              "' (supported: diffuse, dielectric, thindielectric, "
-                                             "conductor, twosided)");
+                                             "roughdielectric, conductor, roughconductor, plastic, "
+                                             "roughplastic, twosided)");
             model = DiffuseBsdf{};
         }
         props.check_all_used();
+        textures.check_all_used();
         return model;
     }
 
     Bsdf build_bsdf(const ObjectDesc& obj) {
-        if (obj.type != "twosided") {
-            if (!obj.children.empty())
-                diagnostics.unknown(object(obj.children.front().object).loc,
-                                    "unexpected nested element in " + describe(obj));
-            return Bsdf(build_bsdf_model(obj));
-        }
+        if (obj.type != "twosided") return Bsdf(build_bsdf_model(obj));
         Properties(obj, diagnostics).check_all_used();
         std::vector<BsdfModel> nested;
         for (const ChildRef& child : obj.children) {
@@ -459,7 +682,7 @@ struct Builder {
         if (nested.empty() || nested.size() > 2)
             throw InputError(obj.loc, "twosided expects one or two nested BSDFs");
         for (const BsdfModel& m : nested)
-            if (std::holds_alternative<DielectricBsdf>(m) || std::holds_alternative<ThinDielectricBsdf>(m))
+            if (Bsdf(m).has_transmission())
                 throw InputError(obj.loc, "twosided cannot wrap a transmissive BSDF");
         std::optional<BsdfModel> back;
         if (nested.size() == 2) back = nested[1];
@@ -472,7 +695,8 @@ struct Builder {
         const ObjectDesc& obj = object(object_index);
         bsdfs.push_back(build_bsdf(obj));
         std::string kind = obj.type;
-        if (kind == "twosided" && !obj.children.empty()) kind = object(obj.children.front().object).type;
+        if (kind == "twosided" && !obj.children.empty())
+            kind = object(obj.children.front().object).type;
         bsdf_kind.push_back(obj.type == "twosided" ? "twosided(" + kind + ")" : kind);
         const int index = static_cast<int>(bsdfs.size()) - 1;
         bsdf_of_object[object_index] = index;
@@ -518,14 +742,16 @@ struct Builder {
         if (obj.type == "sphere") {
             const Vec3d center_object = props.get_vec3("center", Vec3d::Zero());
             const double radius_object = props.get_float("radius", 1.0);
-            if (!(radius_object > 0.0)) throw InputError(props.loc_of("radius"), "sphere radius must be positive");
+            if (!(radius_object > 0.0))
+                throw InputError(props.loc_of("radius"), "sphere radius must be positive");
             // A similarity has L^T L = s^2 I; anything else would make an ellipsoid.
             const Eigen::Matrix3d linear = world_from_object.matrix.topLeftCorner<3, 3>();
             const double scale = std::cbrt(std::abs(linear.determinant()));
             const Eigen::Matrix3d gram = linear.transpose() * linear / (scale * scale);
             if (!(scale > 0.0) || (gram - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-5)
-                throw InputError(props.loc_of("to_world"),
-                                 "sphere to_world must be a similarity (uniform scale, rotation, translation)");
+                throw InputError(
+                    props.loc_of("to_world"),
+                    "sphere to_world must be a similarity (uniform scale, rotation, translation)");
             Sphere s;
             s.center = world_from_object.apply_point(center_object).cast<float>();
             s.radius = static_cast<float>(radius_object * scale);
@@ -542,7 +768,8 @@ struct Builder {
                 mesh = make_disk();
             } else if (obj.type == "obj" || obj.type == "ply" || obj.type == "off") {
                 const std::string filename = props.get_string("filename", "");
-                if (filename.empty()) throw InputError(obj.loc, describe(obj) + " needs a 'filename'");
+                if (filename.empty())
+                    throw InputError(obj.loc, describe(obj) + " needs a 'filename'");
                 TriangleMeshData data = load_mesh(filename, props.loc_of("filename"));
                 face_normals = props.get_bool("face_normals", false);
                 props.ignore("flip_tex_coords");
@@ -551,13 +778,15 @@ struct Builder {
                 mesh.uvs = std::move(data.uvs);
                 mesh.indices = std::move(data.indices);
                 if (!face_normals) {
-                    mesh.normals = data.normals.empty() ? compute_vertex_normals(TriangleMeshData{
-                                                              mesh.positions, {}, {}, mesh.indices, 0})
-                                                        : std::move(data.normals);
+                    mesh.normals = data.normals.empty()
+                                       ? compute_vertex_normals(TriangleMeshData{
+                                             mesh.positions, {}, {}, mesh.indices, 0})
+                                       : std::move(data.normals);
                 }
             } else {
-                diagnostics.unknown(obj.loc, "unknown shape '" + obj.type +
-                                                 "' (supported: obj, ply, off, rectangle, cube, disk, sphere)");
+                diagnostics.unknown(
+                    obj.loc, "unknown shape '" + obj.type +
+                                 "' (supported: obj, ply, off, rectangle, cube, disk, sphere)");
                 return;
             }
             mesh.flip_normals = flip_normals;
@@ -578,12 +807,24 @@ struct Builder {
         shapes.push_back(std::move(*shape));
     }
 
+    /// The rotation part of an emitter's to_world (directions only); rejects scales and shears,
+    /// which would distort directional densities.
+    static Mat3f read_rotation(Properties& props, const Transform& to_world) {
+        const Eigen::Matrix3d linear = to_world.matrix.topLeftCorner<3, 3>();
+        if ((linear.transpose() * linear - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() >
+            1e-4)
+            throw InputError(props.loc_of("to_world"),
+                             "to_world of this emitter must be a rotation (no scale)");
+        return linear.cast<float>();
+    }
+
     void build_emitter(const ObjectDesc& obj, int shape_index) {
         Properties props(obj, diagnostics);
+        TextureParams textures(*this, obj, props);
         if (obj.type == "area") {
-            if (shape_index < 0) throw InputError(obj.loc, "an area emitter must be nested in a <shape>");
-            const Rgb radiance = props.get_rgb("radiance", Rgb::Ones());
-            emitters.emplace_back(AreaEmitter{RgbTexture(radiance), shape_index});
+            if (shape_index < 0)
+                throw InputError(obj.loc, "an area emitter must be nested in a <shape>");
+            emitters.emplace_back(AreaEmitter{textures.rgb("radiance", Rgb::Ones()), shape_index});
             features.has_area_emitters = true;
         } else if (obj.type == "point") {
             PointEmitter p;
@@ -593,16 +834,70 @@ struct Builder {
             p.intensity = props.get_rgb("intensity", Rgb::Ones());
             emitters.emplace_back(p);
             features.has_delta_emitters = true;
+        } else if (obj.type == "spot") {
+            const Transform to_world = props.get_transform("to_world");
+            const Mat3f rotation = read_rotation(props, to_world);
+            const auto cutoff = static_cast<float>(props.get_float("cutoff_angle", 20.0));
+            const auto beam = static_cast<float>(props.get_float("beam_width", 0.75 * cutoff));
+            if (!(cutoff > 0.f && cutoff <= 180.f))
+                throw InputError(props.loc_of("cutoff_angle"),
+                                 "cutoff_angle must be in (0, 180] degrees");
+            if (!(beam >= 0.f && beam <= cutoff))
+                throw InputError(props.loc_of("beam_width"),
+                                 "beam_width must be in [0, cutoff_angle]");
+            const Vec3f position = to_world.apply_point(Vec3d(Vec3d::Zero())).cast<float>();
+            emitters.emplace_back(make_spot(position, rotation,
+                                            props.get_rgb("intensity", Rgb::Ones()), cutoff, beam));
+            features.has_delta_emitters = true;
+        } else if (obj.type == "directional") {
+            DirectionalEmitter d;
+            if (props.has("direction") && props.has("to_world"))
+                throw InputError(obj.loc,
+                                 "directional: give either direction or to_world, not both");
+            Vec3d direction = props.get_vec3("direction", Vec3d(0.0, 0.0, 1.0));
+            if (props.has("to_world"))
+                direction = props.get_transform("to_world").apply_vector(Vec3d(0.0, 0.0, 1.0));
+            if (!(direction.norm() > 0.0)) throw InputError(obj.loc, "directional: zero direction");
+            d.direction = direction.normalized().cast<float>();
+            d.irradiance = props.get_rgb("irradiance", Rgb::Ones());
+            emitters.emplace_back(d);
+            features.has_delta_emitters = true;
         } else if (obj.type == "constant") {
             emitters.emplace_back(ConstantEmitter{props.get_rgb("radiance", Rgb::Ones())});
             features.has_infinite_emitters = true;
+        } else if (obj.type == "envmap") {
+            const std::string filename = props.get_string("filename", "");
+            if (filename.empty()) throw InputError(obj.loc, "envmap needs a 'filename'");
+            EnvmapEmitter e;
+            const Mat3f rotation = read_rotation(props, props.get_transform("to_world"));
+            e.world_from_local = rotation;
+            e.local_from_world = rotation.transpose();
+            e.scale = static_cast<float>(props.get_float("scale", 1.0));
+            if (!(e.scale >= 0.f) || !std::isfinite(e.scale))
+                throw InputError(props.loc_of("scale"), "scale must be finite and non-negative");
+            try {
+                // Environment images are radiance: always linear (Mitsuba converts them with
+                // its file's own encoding; HDR and EXR are linear).
+                BitmapData image = load_bitmap(filename, false);
+                e.data = std::make_shared<const EnvmapData>(
+                    make_envmap_data(image.width, image.height, std::move(image.texels)));
+            } catch (const InputError& error) {
+                throw InputError(props.loc_of("filename"), error.what());
+            } catch (const std::invalid_argument& error) {
+                throw InputError(props.loc_of("filename"), filename + ": " + error.what());
+            }
+            emitters.emplace_back(std::move(e));
+            features.has_infinite_emitters = true;
+            features.has_textures = true;
         } else {
-            diagnostics.unknown(obj.loc, "unknown emitter '" + obj.type +
-                                             "' (supported: area, point, constant)");
+            diagnostics.unknown(
+                obj.loc, "unknown emitter '" + obj.type +
+                             "' (supported: area, point, spot, directional, constant, envmap)");
             return;
         }
         features.emitter_kinds.insert(obj.type);
         props.check_all_used();
+        textures.check_all_used();
         counts["emitters"] += 1;
     }
 
@@ -612,16 +907,19 @@ struct Builder {
         for (int index : used) {
             const Bsdf& b = bsdfs[static_cast<std::size_t>(index)];
             features.bsdf_kinds.insert(bsdf_kind[static_cast<std::size_t>(index)]);
-            const RoughnessClass c = b.roughness_class();
-            if (c == RoughnessClass::Diffuse) features.has_diffuse = true;
-            if (c == RoughnessClass::Glossy) features.has_glossy = true;
+            const BsdfLobes l = b.lobes();
+            const bool glossy_lobe = l.glossy_reflection || l.glossy_transmission;
+            if (l.diffuse_reflection || b.roughness_class() == RoughnessClass::Diffuse)
+                features.has_diffuse = true;
+            // A microfacet lobe counts by its class: glossy, or delta-like below the threshold.
+            if (l.sharpest_class == RoughnessClass::Glossy && glossy_lobe)
+                features.has_glossy = true;
+            const bool delta_like = l.sharpest_class == RoughnessClass::Delta;
+            if (l.delta_reflection || (delta_like && l.glossy_reflection))
+                features.has_delta_reflection = true;
+            if (l.delta_transmission || (delta_like && l.glossy_transmission))
+                features.has_delta_transmission = true;
             if (b.has_transmission()) features.has_transmission = true;
-            if (b.is_delta()) {
-                if (b.has_transmission())
-                    features.has_delta_transmission = true;
-                else
-                    features.has_delta_reflection = true;
-            }
         }
         features.specular_chains_possible =
             features.has_delta_reflection || features.has_delta_transmission || features.has_glossy;
@@ -633,11 +931,13 @@ struct Builder {
 }  // namespace
 
 Scene build_scene(const SceneDesc& desc, const BuildOptions& options) {
-    Builder b{desc, Diagnostics(options.lenient), {}, {}, {}, {}, {}, {}, false, {}, {}, {}, {}};
+    Builder b{desc, Diagnostics(options.lenient), {}, {}, {}, {}, {}, {}, false, {}, {}, {}, {},
+              {}};
     b.build_root();
     b.compute_features();
     if (b.emitters.empty())
-        std::cerr << desc.scene_file << ": warning: the scene has no emitters; the image will be black\n";
+        std::cerr << desc.scene_file
+                  << ": warning: the scene has no emitters; the image will be black\n";
     return Scene(std::move(b.shapes), std::move(b.bsdfs), std::move(b.emitters), b.camera,
                  std::move(b.integrator), b.sampler, std::move(b.features), std::move(b.counts));
 }

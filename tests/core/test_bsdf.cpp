@@ -25,7 +25,8 @@ TEST(DiffuseBsdf, SamplesMatchPdfAtSeveralIncidentAngles) {
         const Vec3f wo = direction_at(angle);
         const auto r = test::chi2_sphere_test(
             [&](Pcg32& rng) -> std::optional<Vec3f> {
-                const BsdfSample s = bsdf.sample(kUv, wo, rng.next_float(), {rng.next_float(), rng.next_float()});
+                const BsdfSample s =
+                    bsdf.sample(kUv, wo, rng.next_float(), {rng.next_float(), rng.next_float()});
                 if (!s.valid()) return std::nullopt;
                 return s.wi;
             },
@@ -39,7 +40,8 @@ TEST(DiffuseBsdf, SampleWeightEqualsEvalOverPdf) {
     Pcg32 rng(5, 2);
     for (int i = 0; i < 1000; ++i) {
         const Vec3f wo = direction_at(89.f * rng.next_float(), 360.f * rng.next_float());
-        const BsdfSample s = bsdf.sample(kUv, wo, rng.next_float(), {rng.next_float(), rng.next_float()});
+        const BsdfSample s =
+            bsdf.sample(kUv, wo, rng.next_float(), {rng.next_float(), rng.next_float()});
         if (!s.valid()) continue;
         const Rgb expected = bsdf.eval(kUv, wo, s.wi) / bsdf.pdf(kUv, wo, s.wi);
         EXPECT_NEAR(s.weight[0], expected[0], 1e-4f * expected[0]);
@@ -136,7 +138,8 @@ TEST(ConductorBsdf, NormalIncidenceReflectanceMatchesTheClosedForm) {
     const BsdfSample s = metal.sample(kUv, Vec3f::UnitZ(), 0.5f, {0.5f, 0.5f});
     ASSERT_TRUE(s.valid());
     for (int c = 0; c < 3; ++c) {
-        const float expected = (sqr(eta[c] - 1.f) + k[c] * k[c]) / (sqr(eta[c] + 1.f) + k[c] * k[c]);
+        const float expected =
+            (sqr(eta[c] - 1.f) + k[c] * k[c]) / (sqr(eta[c] + 1.f) + k[c] * k[c]);
         EXPECT_NEAR(s.weight[c], expected, 1e-5f);
     }
     EXPECT_NEAR((s.wi - Vec3f::UnitZ()).norm(), 0.f, 1e-6f);
@@ -148,16 +151,18 @@ TEST(ConductorBsdf, ReflectanceApproachesOneAtGrazingIncidence) {
 }
 
 TEST(Bsdf, NoNanOrInfForDegenerateDirections) {
-    std::vector<Bsdf> bsdfs = {Bsdf(DiffuseBsdf{Rgb::Constant(0.5f)}),
-                               Bsdf(DielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()}),
-                               Bsdf(DielectricBsdf{1.0001f, Rgb::Ones(), Rgb::Ones()}),
-                               Bsdf(DielectricBsdf{1.f / 1.5f, Rgb::Ones(), Rgb::Ones()}),
-                               Bsdf(ThinDielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()}),
-                               Bsdf(ConductorBsdf{Rgb(0.2f, 0.9f, 1.1f), Rgb(3.9f, 2.4f, 2.1f), false, Rgb::Ones()}),
-                               Bsdf::two_sided(DiffuseBsdf{Rgb::Constant(0.5f)}, std::nullopt)};
-    const std::vector<Vec3f> directions = {Vec3f::UnitZ(), -Vec3f::UnitZ(), Vec3f::UnitX(),
-                                           direction_at(89.999f), -direction_at(89.999f),
-                                           Vec3f(1.f, 0.f, 1e-30f).normalized(), Vec3f(0.f, 1.f, -0.f)};
+    std::vector<Bsdf> bsdfs = {
+        Bsdf(DiffuseBsdf{Rgb::Constant(0.5f)}),
+        Bsdf(DielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()}),
+        Bsdf(DielectricBsdf{1.0001f, Rgb::Ones(), Rgb::Ones()}),
+        Bsdf(DielectricBsdf{1.f / 1.5f, Rgb::Ones(), Rgb::Ones()}),
+        Bsdf(ThinDielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()}),
+        Bsdf(ConductorBsdf{Rgb(0.2f, 0.9f, 1.1f), Rgb(3.9f, 2.4f, 2.1f), false, Rgb::Ones()}),
+        Bsdf::two_sided(DiffuseBsdf{Rgb::Constant(0.5f)}, std::nullopt)};
+    const std::vector<Vec3f> directions = {
+        Vec3f::UnitZ(),        -Vec3f::UnitZ(),        Vec3f::UnitX(),
+        direction_at(89.999f), -direction_at(89.999f), Vec3f(1.f, 0.f, 1e-30f).normalized(),
+        Vec3f(0.f, 1.f, -0.f)};
     for (const Bsdf& b : bsdfs)
         for (const Vec3f& wo : directions) {
             for (const Vec3f& wi : directions) {

@@ -1,0 +1,163 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "core/bsdf/microfacet.h"
+
+#include <cmath>
+
+namespace gdmlt {
+namespace {
+
+constexpr double kInvSqrtPiD = 0.56418958354775628695;  // 1 / sqrt(pi)
+
+/// Inverse error function in double: Giles 2010 ("Approximating the erfinv function", GPU Gems
+/// 4) single-precision polynomial as the start, then Newton steps on erf(y) = x in double.
+double erfinv_double(double x) {
+    x = std::clamp(x, -1.0 + 1e-15, 1.0 - 1e-15);
+    double w = -std::log((1.0 - x) * (1.0 + x));
+    double p;
+    if (w < 5.0) {
+        w -= 2.5;
+        p = 2.81022636e-08;
+        p = 3.43273939e-07 + p * w;
+        p = -3.5233877e-06 + p * w;
+        p = -4.39150654e-06 + p * w;
+        p = 0.00021858087 + p * w;
+        p = -0.00125372503 + p * w;
+        p = -0.00417768164 + p * w;
+        p = 0.246640727 + p * w;
+        p = 1.50140941 + p * w;
+    } else {
+        w = std::sqrt(w) - 3.0;
+        p = -0.000200214257;
+        p = 0.000100950558 + p * w;
+        p = 0.00134934322 + p * w;
+        p = -0.00367342844 + p * w;
+        p = 0.00573950773 + p * w;
+        p = -0.0076224613 + p * w;
+        p = 0.00943887047 + p * w;
+        p = 1.00167406 + p * w;
+        p = 2.83297682 + p * w;
+    }
+    double y = p * x;
+    // The approximation is good to ~1e-7 relative; two Newton steps make it exact in double
+    // (d erf / dy = 2 / sqrt(pi) exp(-y^2)).
+    for (int i = 0; i < 2; ++i) {
+        const double slope = 2.0 * kInvSqrtPiD * std::exp(-y * y);
+        if (!(slope > 0.0)) break;
+        y -= (std::erf(y) - x) / slope;
+    }
+    return y;
+}
+
+/// Samples the x slope of the visible Beckmann normals with alpha = 1 for a direction at
+/// polar angle theta (given by cos and sin) with azimuth 0 (Heitz & d'Eon 2014, Sec. 4.2).
+///
+/// Derivation: a facet with slope (x, y) has normal ~ (-x, -y, 1); its projected area towards
+/// w = (sin, 0, cos) is proportional to (cos - x sin), positive for x < cot(theta). The
+/// visible slope density is therefore (cos - x sin) P22(x, y) on that half plane, with
+/// P22 = exp(-x^2 - y^2) / pi: y stays an independent Gaussian and x has the unnormalised CDF
+///   C(x) = cos (1 + erf x) / 2 + sin exp(-x^2) / (2 sqrt(pi)),
+/// whose total C(cot theta) is cos(theta) (1 + Lambda). We invert C numerically with a
+/// bracketed Newton iteration (monotone C, so bisection keeps it safe).
+double sample_beckmann_visible_slope_x(double cos_theta, double sin_theta, double u) {
+    const auto cdf = [&](double x) {
+        return 0.5 * cos_theta * (1.0 + std::erf(x)) +
+               0.5 * sin_theta * kInvSqrtPiD * std::exp(-x * x);
+    };
+    // Beyond |x| = 9 the Gaussian weight is below 1e-35: nothing to sample there.
+    double lo = -9.0;
+    double hi = sin_theta > 0.0 ? std::min(cos_theta / sin_theta, 9.0) : 9.0;
+    const double target = u * cdf(hi);
+    // Start from the normal-incidence solution, which is exact when theta = 0.
+    double x = std::clamp(erfinv_double(2.0 * u - 1.0), lo, hi);
+    for (int i = 0; i < 60; ++i) {
+        const double value = cdf(x) - target;
+        if (value > 0.0)
+            hi = x;
+        else
+            lo = x;
+        const double derivative = (cos_theta - x * sin_theta) * kInvSqrtPiD * std::exp(-x * x);
+        double next = derivative > 0.0 ? x - value / derivative : 0.5 * (lo + hi);
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        if (std::abs(next - x) <= 1e-9 * (1.0 + std::abs(x)) || hi - lo < 1e-12) {
+            x = next;
+            break;
+        }
+        x = next;
+    }
+    return x;
+}
+
+}  // namespace
+
+float erfinv(float x) {
+    return static_cast<float>(erfinv_double(x));
+}
+
+float MicrofacetDistribution::lambda(const Vec3f& w) const {
+    const float z2 = w.z() * w.z();
+    // alpha_projected^2 tan^2(theta) (Heitz 2014, eq. 80 for the anisotropic projected alpha).
+    const float t2 = (sqr(alpha_u * w.x()) + sqr(alpha_v * w.y())) / z2;
+    if (!(t2 > 0.f)) return 0.f;  // normal incidence
+    if (!std::isfinite(t2)) return kInfinity;
+    if (type == MicrofacetType::Ggx) return 0.5f * (std::sqrt(1.f + t2) - 1.f);
+    // Beckmann (Walter et al. 2007, Sec. 5.1, Smith G1 with a = 1 / (alpha tan theta)), in double:
+    // for large a the two terms nearly cancel.
+    const double a = 1.0 / std::sqrt(static_cast<double>(t2));
+    const double l = 0.5 * (kInvSqrtPiD * std::exp(-a * a) / a - std::erfc(a));
+    return static_cast<float>(std::max(l, 0.0));
+}
+
+Vec3f MicrofacetDistribution::sample_visible(const Vec3f& wo, const Vec2f& u) const {
+    // Stretch the view direction into the alpha = 1 configuration.
+    const Vec3f ws = Vec3f(alpha_u * wo.x(), alpha_v * wo.y(), wo.z()).normalized();
+    if (type == MicrofacetType::Ggx) {
+        // Heitz 2018: with alpha = 1 the GGX microsurface is a hemisphere, and its visible
+        // normals are uniformly distributed over the projected disk of the half sphere facing
+        // ws. Sample that disk (a unit disk whose far half is squashed by cos theta), lift the
+        // point onto the hemisphere around ws, and unstretch.
+        const float len2 = ws.x() * ws.x() + ws.y() * ws.y();
+        const Vec3f t1 = len2 > 0.f ? Vec3f(Vec3f(-ws.y(), ws.x(), 0.f) / std::sqrt(len2))
+                                    : Vec3f(Vec3f::UnitX());
+        const Vec3f t2 = ws.cross(t1);
+        const float r = std::sqrt(u.x());
+        const float phi = 2.f * kPi * u.y();
+        const float p1 = r * std::cos(phi);
+        float p2 = r * std::sin(phi);
+        const float s = 0.5f * (1.f + ws.z());
+        p2 = (1.f - s) * safe_sqrt(1.f - p1 * p1) + s * p2;
+        const Vec3f nh = p1 * t1 + p2 * t2 + safe_sqrt(1.f - p1 * p1 - p2 * p2) * ws;
+        return Vec3f(alpha_u * nh.x(), alpha_v * nh.y(), std::max(nh.z(), 0.f)).normalized();
+    }
+    // Beckmann (Heitz & d'Eon 2014): sample the visible slopes of the alpha = 1 distribution
+    // for the stretched direction's polar angle with azimuth 0, rotate the slope to the
+    // direction's azimuth, unstretch it and turn it into a normal.
+    const double cos_theta = std::clamp(static_cast<double>(ws.z()), 0.0, 1.0);
+    const double sin_theta = std::sqrt(std::max(1.0 - cos_theta * cos_theta, 0.0));
+    const double slope_x = sample_beckmann_visible_slope_x(cos_theta, sin_theta, u.x());
+    const double slope_y = erfinv_double(2.0 * static_cast<double>(u.y()) - 1.0);
+    double cos_phi = 1.0, sin_phi = 0.0;
+    if (sin_theta > 0.0) {
+        const double len = std::hypot(static_cast<double>(ws.x()), static_cast<double>(ws.y()));
+        if (len > 0.0) {
+            cos_phi = ws.x() / len;
+            sin_phi = ws.y() / len;
+        }
+    }
+    const double sx = alpha_u * (cos_phi * slope_x - sin_phi * slope_y);
+    const double sy = alpha_v * (sin_phi * slope_x + cos_phi * slope_y);
+    return Vec3d(-sx, -sy, 1.0).normalized().cast<float>();
+}
+
+Vec3f MicrofacetDistribution::sample_all(const Vec2f& u) const {
+    // Slopes of D(m) cos(theta_m) are distributed as P22 (Heitz 2014, eq. 12): a Gaussian for
+    // Beckmann (radius CDF 1 - exp(-r^2)), and 1 / (pi (1 + r^2)^2) for GGX (radius CDF
+    // r^2 / (1 + r^2)), stretched by the alphas.
+    const double u1 = std::min(static_cast<double>(u.x()), 1.0 - 1e-12);
+    const double r =
+        type == MicrofacetType::Beckmann ? std::sqrt(-std::log1p(-u1)) : std::sqrt(u1 / (1.0 - u1));
+    const double phi = 2.0 * std::numbers::pi * static_cast<double>(u.y());
+    const double sx = alpha_u * r * std::cos(phi), sy = alpha_v * r * std::sin(phi);
+    return Vec3d(-sx, -sy, 1.0).normalized().cast<float>();
+}
+
+}  // namespace gdmlt

@@ -1,0 +1,140 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "core/emitter/emitter.h"
+
+#include <stdexcept>
+
+namespace gdmlt {
+
+const char* emitter_kind_name(const Emitter& e) {
+    if (std::holds_alternative<AreaEmitter>(e)) return "area";
+    if (std::holds_alternative<PointEmitter>(e)) return "point";
+    if (std::holds_alternative<SpotEmitter>(e)) return "spot";
+    if (std::holds_alternative<DirectionalEmitter>(e)) return "directional";
+    if (std::holds_alternative<EnvmapEmitter>(e)) return "envmap";
+    return "constant";
+}
+
+SpotEmitter make_spot(const Vec3f& position, const Mat3f& world_from_local, const Rgb& intensity,
+                      float cutoff_deg, float beam_width_deg) {
+    SpotEmitter s;
+    s.position = position;
+    s.local_from_world = world_from_local.transpose();
+    s.intensity = intensity;
+    s.cutoff_rad = degrees_to_radians(cutoff_deg);
+    // A beam as wide as the cutoff would divide by zero in the falloff: keep a sliver.
+    s.beam_width_rad = std::min(degrees_to_radians(beam_width_deg), s.cutoff_rad * (1.f - 1e-6f));
+    s.cos_cutoff = std::cos(s.cutoff_rad);
+    s.cos_beam_width = std::cos(s.beam_width_rad);
+    return s;
+}
+
+namespace {
+
+/// Local direction of lat-long coordinates (the inverse of envmap_uv).
+Vec3f envmap_direction(const Vec2f& uv, float* sin_theta) {
+    const float theta = uv.y() * kPi, phi = uv.x() * 2.f * kPi;
+    *sin_theta = std::sin(theta);
+    return {std::sin(phi) * *sin_theta, std::cos(theta), -std::cos(phi) * *sin_theta};
+}
+
+Vec2f envmap_uv(const Vec3f& d) {
+    float u = std::atan2(d.x(), -d.z()) * (0.5f * kInvPi);
+    if (u < 0.f) u += 1.f;
+    return {std::min(u, 0x1.fffffep-1f), safe_acos(d.y()) * kInvPi};
+}
+
+}  // namespace
+
+Rgb EnvmapData::lookup(const Vec2f& uv) const {
+    // Columns are periodic and centred at (i + 0.5) / width; rows run pole to pole.
+    float x = uv.x() * static_cast<float>(width) - 0.5f;
+    x -= static_cast<float>(width) * std::floor(x / static_cast<float>(width));
+    const int x0 = std::clamp(static_cast<int>(x), 0, width - 1);
+    const int x1 = x0 + 1 == width ? 0 : x0 + 1;
+    const float fx = std::clamp(x - static_cast<float>(x0), 0.f, 1.f);
+    const float y = std::clamp(uv.y(), 0.f, 1.f) * static_cast<float>(height - 1);
+    const int y0 = std::min(static_cast<int>(y), height - 2);
+    const float fy = std::clamp(y - static_cast<float>(y0), 0.f, 1.f);
+    const auto at = [&](int xi, int yi) -> const Rgb& {
+        return texels[static_cast<std::size_t>(yi) * static_cast<std::size_t>(width) +
+                      static_cast<std::size_t>(xi)];
+    };
+    return (1.f - fy) * ((1.f - fx) * at(x0, y0) + fx * at(x1, y0)) +
+           fy * ((1.f - fx) * at(x0, y0 + 1) + fx * at(x1, y0 + 1));
+}
+
+EnvmapData make_envmap_data(int width, int height, std::vector<Rgb> texels) {
+    if (width < 2 || height < 3 ||
+        texels.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height))
+        throw std::invalid_argument("environment map must be at least 2 x 3 pixels");
+    EnvmapData d;
+    d.width = width;
+    d.height = height;
+    d.texels = std::move(texels);
+    for (Rgb& t : d.texels)
+        t = t.max(0.f).unaryExpr([](float v) { return std::isfinite(v) ? v : 0.f; });
+
+    // Sampling cells: a width x height grid over (u, v). The bilinear radiance is largest at
+    // the corners of the pieces the cell overlaps, so the maximum over these u and v positions
+    // is the exact maximum over the cell: no cell with light gets zero probability.
+    std::vector<float> weights(d.texels.size(), 0.f);
+    double integral = 0.0;
+    std::vector<float> vs;
+    for (int j = 0; j < height; ++j) {
+        const float v0 = static_cast<float>(j) / static_cast<float>(height);
+        const float v1 = static_cast<float>(j + 1) / static_cast<float>(height);
+        vs.assign({v0, v1});
+        for (int k = 0; k < height; ++k) {
+            const float vk = static_cast<float>(k) / static_cast<float>(height - 1);
+            if (vk > v0 && vk < v1) vs.push_back(vk);
+        }
+        // Mean of sin(theta) over the cell's rows, and the cell's solid angle per unit u.
+        const float band = std::cos(kPi * v0) - std::cos(kPi * v1);
+        const float mean_sin = band / (kPi * (v1 - v0));
+        for (int i = 0; i < width; ++i) {
+            const float u0 = static_cast<float>(i) / static_cast<float>(width);
+            const float u1 = static_cast<float>(i + 1) / static_cast<float>(width);
+            const float um = 0.5f * (u0 + u1);
+            float max_luminance = 0.f;
+            for (float u : {u0, um, u1})
+                for (float v : vs)
+                    max_luminance = std::max(max_luminance, luminance(d.lookup({u, v})));
+            weights[static_cast<std::size_t>(j) * static_cast<std::size_t>(width) +
+                    static_cast<std::size_t>(i)] = max_luminance * mean_sin;
+            integral += static_cast<double>(luminance(d.lookup({um, 0.5f * (v0 + v1)}))) *
+                        (2.0 * std::numbers::pi / width) * band;
+        }
+    }
+    d.distribution = Distribution2D(weights, width, height);
+    d.luminance_integral = static_cast<float>(integral);
+    return d;
+}
+
+Rgb EnvmapEmitter::eval(const Vec3f& d_world) const {
+    const Vec3f d = local_from_world * d_world;
+    return data->lookup(envmap_uv(d)) * scale;
+}
+
+EnvmapEmitter::Sample EnvmapEmitter::sample(const Vec2f& u) const {
+    Sample s;
+    if (!data->distribution.valid()) return s;
+    float pdf_uv = 0.f;
+    const Vec2f uv = data->distribution.sample(u, &pdf_uv);
+    float sin_theta = 0.f;
+    const Vec3f d = envmap_direction(uv, &sin_theta);
+    // d omega = 2 pi^2 sin(theta) du dv.
+    if (!(sin_theta > 0.f) || !(pdf_uv > 0.f)) return s;
+    s.direction = (world_from_local * d).normalized();
+    s.pdf_solid_angle = pdf_uv / (2.f * kPi * kPi * sin_theta);
+    s.radiance = data->lookup(uv) * scale;
+    return s;
+}
+
+float EnvmapEmitter::pdf_solid_angle(const Vec3f& d_world) const {
+    const Vec3f d = local_from_world * d_world;
+    const float sin_theta = std::sqrt(d.x() * d.x() + d.z() * d.z());
+    if (!(sin_theta > 0.f)) return 0.f;
+    return data->distribution.pdf_area(envmap_uv(d)) / (2.f * kPi * kPi * sin_theta);
+}
+
+}  // namespace gdmlt

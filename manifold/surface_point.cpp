@@ -1,0 +1,233 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "manifold/surface_point.h"
+
+#include <cmath>
+
+namespace gdmlt::manifold {
+namespace {
+
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+
+/// Barycentric slack accepted by refine_hit: the float accelerator and the double intersection
+/// may disagree about which of two neighbouring triangles a ray hits when it passes within
+/// round-off of their shared edge; extrapolating the hit triangle by that much is harmless.
+constexpr double kBarycentricSlack = 1e-5;
+
+Vec3d to_double(const Vec3f& v) {
+    return v.cast<double>();
+}
+
+/// Solves dp_du * du + dp_dv * dv = e for e in the tangent plane (least squares through the
+/// 2x2 Gram matrix; exact for e in the plane).
+std::optional<Vec2d> param_offset(const Vec3d& dp_du, const Vec3d& dp_dv, const Vec3d& e) {
+    const double a = dp_du.squaredNorm(), b = dp_du.dot(dp_dv), c = dp_dv.squaredNorm();
+    const double det = a * c - b * b;
+    if (!(det > 1e-300) || !(det > 1e-24 * a * c)) return std::nullopt;
+    const double r0 = dp_du.dot(e), r1 = dp_dv.dot(e);
+    return Vec2d((c * r0 - b * r1) / det, (a * r1 - b * r0) / det);
+}
+
+std::optional<SurfacePoint> mesh_point(const TriangleMesh& mesh, std::uint32_t triangle,
+                                       const Vec2d& b) {
+    if (triangle >= mesh.triangle_count()) return std::nullopt;
+    const std::uint32_t i0 = mesh.indices[3 * triangle];
+    const std::uint32_t i1 = mesh.indices[3 * triangle + 1];
+    const std::uint32_t i2 = mesh.indices[3 * triangle + 2];
+    const Vec3d p0 = to_double(mesh.positions[i0]);
+    const Vec3d p1 = to_double(mesh.positions[i1]);
+    const Vec3d p2 = to_double(mesh.positions[i2]);
+    const double b0 = 1.0 - b.x() - b.y();
+
+    SurfacePoint sp;
+    sp.primitive = triangle;
+    sp.surface_param = b;
+    sp.p = b0 * p0 + b.x() * p1 + b.y() * p2;
+    sp.dp_du = p1 - p0;
+    sp.dp_dv = p2 - p0;
+    const Vec3d cross = sp.dp_du.cross(sp.dp_dv);
+    const double cross_norm = cross.norm();
+    if (!(cross_norm > 0.0) || !std::isfinite(cross_norm)) return std::nullopt;
+    const double sign = mesh.flip_normals ? -1.0 : 1.0;
+    sp.n_geometric = sign * cross / cross_norm;
+    sp.n_shading = sp.n_geometric;
+    if (!mesh.normals.empty()) {
+        const Vec3d n0 = to_double(mesh.normals[i0]);
+        const Vec3d n1 = to_double(mesh.normals[i1]);
+        const Vec3d n2 = to_double(mesh.normals[i2]);
+        const Vec3d n_interp = b0 * n0 + b.x() * n1 + b.y() * n2;
+        const double length = n_interp.norm();
+        if (length > 1e-20) {
+            const Vec3d n = n_interp / length;
+            // d(N/|N|) = (I - n n^T) dN / |N|, as in core/geometry/shape.cpp.
+            const Vec3d dN_du = n1 - n0, dN_dv = n2 - n0;
+            sp.n_shading = sign * n;
+            sp.dn_du = sign * (dN_du - n * n.dot(dN_du)) / length;
+            sp.dn_dv = sign * (dN_dv - n * n.dot(dN_dv)) / length;
+        }
+    }
+    sp.tangents[0] = sp.dp_du.normalized();
+    sp.tangents[1] = sp.n_geometric.cross(sp.tangents[0]);
+    for (int k = 0; k < 2; ++k) {
+        const std::optional<Vec2d> duv = param_offset(sp.dp_du, sp.dp_dv, sp.tangents[k]);
+        if (!duv) return std::nullopt;
+        sp.dn_shading_dtangent[k] = sp.dn_du * duv->x() + sp.dn_dv * duv->y();
+        sp.ddp_du_dtangent[k] = Vec3d::Zero();  // dp_du is constant on a triangle
+    }
+    return sp;
+}
+
+/// Sphere parametrised by u = phi / 2pi, v = theta / pi around the world z axis (shape.cpp);
+/// `dir` is the unit direction from the centre.
+SurfacePoint sphere_point(const Sphere& sphere, const Vec3d& dir) {
+    const double r = sphere.radius;
+    const Vec3d center = to_double(sphere.center);
+    const double cos_theta = std::clamp(dir.z(), -1.0, 1.0);
+    const double sin_theta = std::hypot(dir.x(), dir.y());
+    double phi = std::atan2(dir.y(), dir.x());
+    if (phi < 0.0) phi += kTwoPi;
+    const double cos_phi = sin_theta > 0.0 ? dir.x() / sin_theta : 1.0;
+    const double sin_phi = sin_theta > 0.0 ? dir.y() / sin_theta : 0.0;
+
+    SurfacePoint sp;
+    sp.p = center + r * dir;
+    sp.surface_param = Vec2d(phi / kTwoPi, std::acos(cos_theta) / std::numbers::pi);
+    // dp_du = 2 pi r (z x dir): written without phi so that it stays smooth near the poles.
+    sp.dp_du = (kTwoPi * r) * Vec3d(-dir.y(), dir.x(), 0.0);
+    sp.dp_dv = (std::numbers::pi * r) * Vec3d(cos_theta * cos_phi, cos_theta * sin_phi, -sin_theta);
+    const double sign = sphere.flip_normals ? -1.0 : 1.0;
+    sp.n_geometric = sign * dir;
+    sp.n_shading = sp.n_geometric;
+    sp.dn_du = sign * sp.dp_du / r;
+    sp.dn_dv = sign * sp.dp_dv / r;
+    const Vec3d u_dir = Vec3d(-dir.y(), dir.x(), 0.0);
+    if (u_dir.squaredNorm() > 1e-20) {
+        sp.tangents[0] = u_dir.normalized();
+        sp.tangents[1] = sp.n_geometric.cross(sp.tangents[0]);
+    } else {
+        sp.tangents = tangents_around(sp.n_geometric);
+    }
+    for (int k = 0; k < 2; ++k) {
+        const Vec3d& e = sp.tangents[k];
+        sp.dn_shading_dtangent[k] = sign * e / r;  // d(dir)/de = e / r
+        sp.ddp_du_dtangent[k] = kTwoPi * Vec3d(-e.y(), e.x(), 0.0);
+    }
+    return sp;
+}
+
+Vec3d sphere_direction_from_param(const Vec2d& param) {
+    const double phi = kTwoPi * param.x(), theta = std::numbers::pi * param.y();
+    return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
+}
+
+}  // namespace
+
+Tangents tangents_around(const Vec3d& n) {
+    const double sign = std::copysign(1.0, n.z());
+    const double a = -1.0 / (sign + n.z());
+    const double b = n.x() * n.y() * a;
+    return {Vec3d(1.0 + sign * n.x() * n.x() * a, sign * b, -sign * n.x()),
+            Vec3d(b, sign + n.y() * n.y() * a, -n.y())};
+}
+
+std::optional<SurfacePoint> surface_point_at(const Shape& shape, std::int32_t shape_index,
+                                             std::uint32_t primitive, const Vec2d& param) {
+    std::optional<SurfacePoint> sp;
+    if (const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry())) {
+        sp = mesh_point(*mesh, primitive, param);
+    } else {
+        sp = sphere_point(std::get<Sphere>(shape.geometry()), sphere_direction_from_param(param));
+        sp->primitive = primitive;
+    }
+    if (sp) sp->shape = shape_index;
+    return sp;
+}
+
+std::optional<SurfacePoint> surface_point_from(const Shape& shape, const SurfaceInteraction& si) {
+    if (!si.valid()) return std::nullopt;
+    if (const auto* sphere = std::get_if<Sphere>(&shape.geometry())) {
+        // From the position rather than from (phi, theta): no pole trouble, same float point.
+        const Vec3d d = to_double(si.p) - to_double(sphere->center);
+        const double length = d.norm();
+        if (!(length > 0.0)) return std::nullopt;
+        SurfacePoint sp = sphere_point(*sphere, d / length);
+        sp.shape = si.shape;
+        sp.primitive = si.primitive;
+        return sp;
+    }
+    return surface_point_at(shape, si.shape, si.primitive, si.surface_param.cast<double>());
+}
+
+std::optional<SurfacePoint> refine_hit(const Shape& shape, std::int32_t shape_index,
+                                       std::uint32_t primitive, const Vec3d& origin,
+                                       const Vec3d& direction, double t_hint) {
+    if (const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry())) {
+        if (primitive >= mesh->triangle_count()) return std::nullopt;
+        const Vec3d p0 = to_double(mesh->positions[mesh->indices[3 * primitive]]);
+        const Vec3d p1 = to_double(mesh->positions[mesh->indices[3 * primitive + 1]]);
+        const Vec3d p2 = to_double(mesh->positions[mesh->indices[3 * primitive + 2]]);
+        // Moeller-Trumbore in double.
+        const Vec3d e1 = p1 - p0, e2 = p2 - p0;
+        const Vec3d pvec = direction.cross(e2);
+        const double det = e1.dot(pvec);
+        if (!(std::abs(det) > 1e-14 * e1.norm() * e2.norm())) return std::nullopt;  // parallel
+        const double inv_det = 1.0 / det;
+        const Vec3d svec = origin - p0;
+        const double b1 = svec.dot(pvec) * inv_det;
+        const Vec3d qvec = svec.cross(e1);
+        const double b2 = direction.dot(qvec) * inv_det;
+        const double t = e2.dot(qvec) * inv_det;
+        if (!std::isfinite(t) || !(t > 0.0)) return std::nullopt;
+        if (b1 < -kBarycentricSlack || b2 < -kBarycentricSlack || b1 + b2 > 1.0 + kBarycentricSlack)
+            return std::nullopt;
+        return surface_point_at(shape, shape_index, primitive, Vec2d(b1, b2));
+    }
+    const auto& sphere = std::get<Sphere>(shape.geometry());
+    const Vec3d center = to_double(sphere.center);
+    const double r = sphere.radius;
+    // Closest approach first, then the half chord: avoids the cancellation of the textbook
+    // quadratic when the origin is far away (Haines et al., Ray Tracing Gems ch. 7).
+    const double t_mid = (center - origin).dot(direction);
+    const Vec3d closest = origin + t_mid * direction;
+    const double d2 = (closest - center).squaredNorm();
+    const double half2 = r * r - d2;
+    if (half2 < -1e-10 * r * r) return std::nullopt;  // misses the sphere
+    const double half = safe_sqrt(half2);
+    const double t0 = t_mid - half, t1 = t_mid + half;
+    double t = std::abs(t0 - t_hint) <= std::abs(t1 - t_hint) ? t0 : t1;
+    if (!(t > 0.0)) t = t1;
+    if (!(t > 0.0) || !std::isfinite(t)) return std::nullopt;
+    const Vec3d d = origin + t * direction - center;
+    const double length = d.norm();
+    if (!(length > 0.0)) return std::nullopt;
+    SurfacePoint sp = sphere_point(sphere, d / length);
+    sp.shape = shape_index;
+    sp.primitive = primitive;
+    return sp;
+}
+
+std::optional<SurfacePoint> move_on_surface(const Shape& shape, const SurfacePoint& point,
+                                            const Vec2d& offset) {
+    const Vec3d e = offset.x() * point.tangents[0] + offset.y() * point.tangents[1];
+    if (std::holds_alternative<TriangleMesh>(shape.geometry())) {
+        const std::optional<Vec2d> duv = param_offset(point.dp_du, point.dp_dv, e);
+        if (!duv) return std::nullopt;
+        return surface_point_at(shape, point.shape, point.primitive, point.surface_param + *duv);
+    }
+    const auto& sphere = std::get<Sphere>(shape.geometry());
+    const Vec3d dir = (point.p - to_double(sphere.center)) / sphere.radius + e / sphere.radius;
+    const double length = dir.norm();
+    if (!(length > 0.0)) return std::nullopt;
+    SurfacePoint sp = sphere_point(sphere, dir / length);
+    sp.shape = point.shape;
+    sp.primitive = point.primitive;
+    return sp;
+}
+
+SurfaceInteraction to_interaction(const Shape& shape, const SurfacePoint& point) {
+    SurfaceInteraction si =
+        shape.interaction_at(point.primitive, point.surface_param.cast<float>());
+    si.shape = point.shape;
+    return si;
+}
+
+}  // namespace gdmlt::manifold
