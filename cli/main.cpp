@@ -132,16 +132,24 @@ void write_text_atomically(const std::string& path, const std::string& text) {
     std::filesystem::rename(temp, target);
 }
 
-IntegratorResult run_path(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
-    RenderSettings settings;
+/// The settings every per-pixel sampler shares (path tracer, GDPT): spp or time budget, seed,
+/// path depth; defaults < scene < command line.
+template <typename Settings>
+void apply_sample_budget(const Scene& scene, const RenderOptions& options, Settings& settings) {
     settings.spp = options.spp > 0 ? options.spp : scene.sampler().sample_count;
     settings.time_budget_s = options.time_s;
+    // --time without --spp: the time alone decides.
     if (options.time_s > 0.0 && options.spp == 0)
         settings.spp = std::numeric_limits<int>::max() / 2;
     settings.seed = options.seed.value_or(scene.sampler().seed);
     settings.path.max_depth = options.max_depth.value_or(scene.integrator().max_depth);
     settings.path.rr_depth = scene.integrator().rr_depth;
     settings.path.hide_emitters = scene.integrator().hide_emitters;
+}
+
+IntegratorResult run_path(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
+    RenderSettings settings;
+    apply_sample_budget(scene, options, settings);
 
     IntegratorResult r;
     r.seed = settings.seed;
@@ -251,14 +259,7 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
 
 IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
     mlt::GdptSettings settings;
-    settings.spp = options.spp > 0 ? options.spp : scene.sampler().sample_count;
-    settings.time_budget_s = options.time_s;
-    if (options.time_s > 0.0 && options.spp == 0)
-        settings.spp = std::numeric_limits<int>::max() / 2;
-    settings.seed = options.seed.value_or(scene.sampler().seed);
-    settings.path.max_depth = options.max_depth.value_or(scene.integrator().max_depth);
-    settings.path.rr_depth = scene.integrator().rr_depth;
-    settings.path.hide_emitters = scene.integrator().hide_emitters;
+    apply_sample_budget(scene, options, settings);
     const std::string shift = options.shift.empty() ? "auto" : options.shift;
     if (shift == "auto")
         settings.shift = manifold::ShiftKind::Auto;

@@ -302,6 +302,71 @@ ShiftStatus manifold_shift(const Scene& scene, const Path& base, std::size_t k, 
     return ShiftStatus::Ok;
 }
 
+/// |d(direction)/d(half vector)| in solid angle for the direction `wi` leaving a microfacet
+/// interface with normal h, incident `wo` (Walter et al. 2007, eqs. 14 and 16): 4 |wo.h| for
+/// reflection; (n_o wo.h + n_t wi.h)^2 / (n_t^2 |wi.h|) for refraction.
+double direction_per_half_vector(const Vec3f& wo, const Vec3f& wi, const Vec3f& h,
+                                 bool transmission, float n_o, float n_t) {
+    if (!transmission) return 4.0 * std::abs(static_cast<double>(wo.dot(h)));
+    const double denominator =
+        static_cast<double>(n_o) * wo.dot(h) + static_cast<double>(n_t) * wi.dot(h);
+    return denominator * denominator /
+           (static_cast<double>(n_t) * n_t * std::abs(static_cast<double>(wi.dot(h))));
+}
+
+/// The offset's continuation at a glossy vertex keeping the base's half vector (local frame).
+/// Fills y's f, pdf and direction and the log Jacobian of the map w_x -> w_y.
+ShiftStatus copy_half_vector(const Scene& scene, const Path& base, std::size_t k, PathVertex& y,
+                             const Vec3f& from, double* log_jacobian) {
+    const PathVertex& x = base.vertices[k];
+    const Vec3f wo_x = x.si.shading.to_local((previous_position(base, k) - x.si.p).normalized());
+    const Vec3f wi_x = x.si.shading.to_local(x.wi_world);
+    const Vec3f wo_y_world = (from - y.si.p).normalized();
+    const Vec3f wo_y = y.si.shading.to_local(wo_y_world);
+    if (wo_x.z() * wo_y.z() <= 0.f) return ShiftStatus::ClassificationChanged;
+    // Indices on the incident (wo) and transmitted sides; 1 and 1 for reflection.
+    float n_o = 1.f, n_t = 1.f;
+    if (x.transmission) {
+        const auto* model = std::get_if<RoughDielectricBsdf>(&scene.bsdf_of(x.si).front());
+        if (!model) return ShiftStatus::LobeChanged;
+        (wo_x.z() > 0.f ? n_t : n_o) = model->eta;
+    }
+    Vec3f h = x.transmission ? Vec3f(n_o * wo_x + n_t * wi_x) : Vec3f(wo_x + wi_x);
+    const float length = h.norm();
+    if (!(length > 1e-12f)) return ShiftStatus::LobeChanged;
+    h /= length;
+    if (h.z() < 0.f) h = -h;
+
+    Vec3f wi_y;
+    const float c = wo_y.dot(h);
+    if (!x.transmission) {
+        wi_y = 2.f * c * h - wo_y;
+    } else {
+        const float eta = n_o / n_t;
+        const float k2 = 1.f - eta * eta * (1.f - c * c);
+        if (k2 < 0.f) return ShiftStatus::TotalInternalReflection;
+        wi_y = -eta * wo_y + (eta * c - std::copysign(std::sqrt(k2), c)) * h;
+        wi_y.normalize();
+    }
+    const Bsdf& bsdf = scene.bsdf_of(y.si);
+    y.continued = true;
+    y.delta = false;
+    y.transmission = x.transmission;
+    y.u_lobe = x.u_lobe;
+    y.u_direction = x.u_direction;
+    y.wi_world = y.si.shading.to_world(wi_y);
+    y.f = bsdf.eval(y.si.uv, wo_y, wi_y);
+    y.pdf = bsdf.pdf(y.si.uv, wo_y, wi_y);
+    const float side = y.si.n_geometric.dot(y.wi_world) * y.si.n_geometric.dot(wo_y_world);
+    if ((x.transmission ? side > 0.f : side < 0.f) || !(y.pdf > 0.f) || !is_finite(y.f))
+        return ShiftStatus::LobeChanged;
+    const double j = direction_per_half_vector(wo_y, wi_y, h, x.transmission, n_o, n_t) /
+                     direction_per_half_vector(wo_x, wi_x, h, x.transmission, n_o, n_t);
+    if (!(j > 0.0) || !std::isfinite(j)) return ShiftStatus::LobeChanged;
+    *log_jacobian = std::log(j);
+    return ShiftStatus::Ok;
+}
+
 }  // namespace
 
 ShiftResult shift_path(const Scene& scene, const Path& base, const Vec2f& film_offset,
@@ -405,6 +470,19 @@ ShiftResult shift_path(const Scene& scene, const Path& base, const Vec2f& film_o
                 result.manifold_chain_at = static_cast<int>(k + 1);
                 return finish(ShiftStatus::Ok, static_cast<int>(n));
             }
+        }
+
+        // Half-vector copy through a glossy vertex (Kettunen et al. 2015, sec. 4.1; Lehtinen et
+        // al. 2013, sec. 5.2): the offset keeps the base's half vector in its own shading frame.
+        if ((kind == ShiftKind::Auto || kind == ShiftKind::HalfVector) && !x.delta &&
+            x.roughness == RoughnessClass::Glossy) {
+            double log_j = 0.0;
+            const ShiftStatus status = copy_half_vector(scene, base, k, yk, from, &log_j);
+            if (status != ShiftStatus::Ok) return finish(status, static_cast<int>(k + 1));
+            result.log_jacobian[k] = log_j;
+            ++counters.half_vector_steps;
+            ray = spawn_ray(yk.si.p, yk.si.n_geometric, yk.wi_world);
+            continue;
         }
 
         // Half-vector copy / replay: sample the offset's BSDF with the base's random numbers.

@@ -3,6 +3,8 @@
 // and the unbiasedness of the gradient estimator built on them.
 #include <gtest/gtest.h>
 
+#include <optional>
+
 #include "core/path/path.h"
 #include "core/render/render_path.h"
 #include "manifold/shift.h"
@@ -207,6 +209,100 @@ TEST(GradientEstimator, MeanDifferenceBetweenTwoPixelsMatchesThePathTracedDiffer
         << "GDPT " << mean << " +- " << se << ", PT " << expected;
     // The gradient estimate is much less noisy than the difference of two PT estimates.
     EXPECT_LT(se, 0.8 * std::sqrt(pt_se[0] * pt_se[0] + pt_se[1] * pt_se[1]));
+}
+
+}  // namespace
+}  // namespace gdmlt::manifold
+
+namespace gdmlt::manifold {
+namespace {
+
+/// A glossy plate (rough conductor, alpha 0.1: class Glossy) under an area light, with a
+/// diffuse back wall, seen at a slant.
+std::string glossy_plate_xml(int resolution, const char* bsdf) {
+    return test::sensor_xml(resolution, 40.f, "0, 1.5, 3.5") + R"(
+        <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="-90"/><translate y="-1"/></transform>)" +
+           std::string(bsdf) + R"(</shape>
+        <shape type="rectangle"><transform name="to_world"><translate z="-1"/></transform></shape>
+        <shape type="rectangle"><transform name="to_world"><scale value="0.4"/><rotate x="1" angle="90"/><translate y="1.2"/></transform>
+            <emitter type="area"><rgb name="radiance" value="10"/></emitter></shape>)";
+}
+
+const char* kRoughMetal =
+    R"(<bsdf type="roughconductor"><string name="distribution" value="ggx"/><float name="alpha" value="0.1"/></bsdf>)";
+const char* kRoughGlassSlab =
+    R"(<bsdf type="roughdielectric"><string name="distribution" value="ggx"/><float name="alpha" value="0.1"/></bsdf>)";
+
+TEST(ShiftMapping, ShiftingToANeighbourAndBackReturnsTheBasePathOverAGlossyPlate) {
+    for (const char* bsdf : {kRoughMetal, kRoughGlassSlab}) {
+        const Scene scene = test::scene_from_xml(glossy_plate_xml(32, bsdf));
+        ASSERT_TRUE(scene.features().has_glossy);
+        for (ShiftKind kind : {ShiftKind::Auto, ShiftKind::HalfVector, ShiftKind::Replay}) {
+            const InvertibilityReport r = check_invertibility(scene, 3000, kind);
+            // Seed 17, 3000 paths. Successful pairs must round-trip (2% float slack as above);
+            // measured success 89-93% for every kind and both BSDFs (of the ~1840 paths that hit
+            // the scene), bounded at 80%.
+            EXPECT_GE(r.round_trip_ok, r.both_ok * 98 / 100) << to_string(kind);
+            EXPECT_GT(r.both_ok, r.trials * 8 / 10)
+                << to_string(kind) << ": " << r.both_ok << " of " << r.trials;
+            RecordProperty(std::string("success_") + (bsdf == kRoughMetal ? "metal_" : "glass_") +
+                               to_string(kind),
+                           std::to_string(r.both_ok * 1.0 / std::max(r.trials, 1)) + " of " +
+                               std::to_string(r.trials));
+        }
+    }
+}
+
+TEST(ShiftMapping, HalfVectorCopyJacobianMatchesFiniteDifferences) {
+    // The map w_x -> w_y at the first (glossy) vertex, with both incident directions fixed:
+    // perturb the base's outgoing direction in its tangent plane by +-h and read the offset's.
+    // h = 1e-3 rad; tolerance 1% (float directions: ~1e-7/1e-3 = 1e-4 noise per difference).
+    for (const char* bsdf : {kRoughMetal, kRoughGlassSlab}) {
+        const Scene scene = test::scene_from_xml(glossy_plate_xml(32, bsdf));
+        PathCounters counters;
+        ShiftCounters shifts;
+        int checked = 0;
+        for (int t = 0; t < 300 && checked < 60; ++t) {
+            const Path base =
+                sample_base(scene, derive_stream(31, static_cast<std::uint64_t>(t)), counters);
+            if (base.vertices.empty() || base.vertices[0].roughness != RoughnessClass::Glossy ||
+                !base.vertices[0].continued || base.vertices[0].delta)
+                continue;
+            const ShiftResult r =
+                shift_path(scene, base, Vec2f(1.f, 0.f), ShiftKind::HalfVector, shifts);
+            if (r.offset.vertices.empty() || !r.offset.vertices[0].continued ||
+                r.log_jacobian.empty())
+                continue;
+            const Vec3f w = base.vertices[0].wi_world;
+            const Frame fw = Frame::from_normal(w);
+            const double h = 1e-3;
+            auto offset_direction = [&](double a, double b) -> std::optional<Vec3d> {
+                Path perturbed = base;
+                perturbed.vertices[0].wi_world =
+                    (w + static_cast<float>(a) * fw.s + static_cast<float>(b) * fw.t).normalized();
+                const ShiftResult s =
+                    shift_path(scene, perturbed, Vec2f(1.f, 0.f), ShiftKind::HalfVector, shifts);
+                if (s.offset.vertices.empty() || !s.offset.vertices[0].continued)
+                    return std::nullopt;
+                return s.offset.vertices[0].wi_world.cast<double>();
+            };
+            const auto c = offset_direction(0, 0), ap = offset_direction(h, 0),
+                       am = offset_direction(-h, 0), bp = offset_direction(0, h),
+                       bm = offset_direction(0, -h);
+            if (!c || !ap || !am || !bp || !bm) continue;
+            const Frame fo = Frame::from_normal(c->cast<float>());
+            const Vec3d da = (*ap - *am) / (2 * h), db = (*bp - *bm) / (2 * h);
+            Eigen::Matrix2d m;
+            m << da.dot(fo.s.cast<double>()), db.dot(fo.s.cast<double>()),
+                da.dot(fo.t.cast<double>()), db.dot(fo.t.cast<double>());
+            const double fd = std::abs(m.determinant());
+            EXPECT_NEAR(std::exp(r.log_jacobian[0]) / fd, 1.0, 0.01) << "path " << t;
+            ++checked;
+        }
+        EXPECT_GT(checked, 30) << bsdf;
+        RecordProperty(std::string("checked_") + (bsdf == kRoughMetal ? "metal" : "glass"),
+                       std::to_string(checked));
+    }
 }
 
 }  // namespace
