@@ -13,6 +13,7 @@
 #include "manifold/shift.h"
 #include "manifold/specular_chain.h"
 #include "mlt/gdpt.h"
+#include "tests/support/pixel_difference.h"
 #include "tests/support/scene_fixtures.h"
 
 namespace gdmlt::manifold {
@@ -217,43 +218,11 @@ TEST(ManifoldShift, JacobianMatchesFiniteDifferencesOfTheMap) {
     EXPECT_GE(shift_close, checked * 9 / 10);
 }
 
-/// GDPT's estimate of I(xj, y) - I(xi, y) and its standard error, with one base sample in each
-/// pixel per iteration (+x from i, -x from j, as GDPT combines them).
-struct DifferenceEstimate {
-    double mean = 0.0, standard_error = 0.0;
-};
-DifferenceEstimate gdpt_difference(const Scene& scene, const mlt::GdptSettings& settings, int xi,
-                                   int xj, int y, int samples, ShiftCounters& shifts) {
-    PathCounters counters;
-    double sum = 0.0, sum2 = 0.0;
-    for (int s = 0; s < samples; ++s) {
-        double d = 0.0;
-        for (int side = 0; side < 2; ++side) {
-            IndependentStream stream(
-                derive_stream(77, static_cast<std::uint64_t>(side), static_cast<std::uint64_t>(s)));
-            const Vec2f jitter = stream.next_2d();
-            const int px = side == 0 ? xi : xj;
-            std::array<bool, 4> inside = {side == 0, side == 1, false, false};
-            const mlt::GradientSample g = mlt::sample_gradients(
-                scene,
-                Vec2f(static_cast<float>(px) + jitter.x(), static_cast<float>(y) + jitter.y()),
-                stream, settings, inside, counters, shifts);
-            d += side == 0 ? luminance(g.difference[0]) : -luminance(g.difference[1]);
-        }
-        sum += d;
-        sum2 += d * d;
-    }
-    DifferenceEstimate e;
-    e.mean = sum / samples;
-    e.standard_error = std::sqrt((sum2 / samples - e.mean * e.mean) / (samples - 1));
-    return e;
-}
-
 TEST(ManifoldShift, GradientOnTheFloorCausticMatchesThePathTracedDifference) {
     // Pixels (kXi, kY) and (kXi + 1, kY) of the 32^2 glass-sphere box lie on the edge of the
     // caustic the sphere focuses onto the floor (light -> sphere -> sphere -> floor -> camera;
     // a probe of caustic paths per pixel found 0.18 and 0.51 of 0.25 and 0.75 there). Measured:
-    // PT 0.362 +- 0.008 and 0.557 +- 0.010; GDPT auto 0.211 +- 0.011, reconnect 0.224 +- 0.010. The
+    // PT 0.352 +- 0.008 and 0.576 +- 0.010; GDPT auto 0.211 +- 0.011, reconnect 0.224 +- 0.010. The
     // GDPT estimate of their difference over 2 x 40000 base samples (manifold shift on) and the
     // path tracer's two pixel values (40000 samples each) must agree within 4 combined standard
     // errors.
@@ -263,36 +232,23 @@ TEST(ManifoldShift, GradientOnTheFloorCausticMatchesThePathTracedDifference) {
     settings.shift = ShiftKind::Auto;
     constexpr int kSamples = 40000;
     ShiftCounters shifts;
-    const DifferenceEstimate g =
-        gdpt_difference(scene, settings, kXi, kXi + 1, kY, kSamples, shifts);
+    const test::MeanEstimate g =
+        test::gdpt_pixel_difference(scene, settings, kXi, kY, kSamples, 77, shifts);
     EXPECT_GT(shifts.manifold_shifts, 0u);
-
-    PathCounters counters;
-    double pt[2], pt_se[2];
-    for (int side = 0; side < 2; ++side) {
-        double a = 0.0, a2 = 0.0;
-        for (int s = 0; s < kSamples; ++s) {
-            IndependentStream stream(
-                derive_stream(99, static_cast<std::uint64_t>(side), static_cast<std::uint64_t>(s)));
-            const Vec2f jitter = stream.next_2d();
-            const Ray ray = scene.camera().generate_ray(Vec2f(
-                static_cast<float>(kXi + side) + jitter.x(), static_cast<float>(kY) + jitter.y()));
-            const double v =
-                luminance(sample_path_radiance(scene, ray, stream, settings.path, counters));
-            a += v;
-            a2 += v * v;
-        }
-        pt[side] = a / kSamples;
-        pt_se[side] = std::sqrt((a2 / kSamples - pt[side] * pt[side]) / (kSamples - 1));
-    }
+    const test::MeanEstimate p0 =
+        test::path_traced_pixel(scene, settings.path, kXi, kY, kSamples, 99);
+    const test::MeanEstimate p1 =
+        test::path_traced_pixel(scene, settings.path, kXi + 1, kY, kSamples, 99);
+    const double pt[2] = {p0.mean, p1.mean};
+    const double pt_se[2] = {p0.standard_error, p1.standard_error};
     const double expected = pt[1] - pt[0];
     const double combined =
         std::sqrt(g.standard_error * g.standard_error + pt_se[0] * pt_se[0] + pt_se[1] * pt_se[1]);
     // The same estimator without the manifold shift, for the record (standard errors).
     settings.shift = ShiftKind::Reconnect;
     ShiftCounters reconnect_shifts;
-    const DifferenceEstimate r =
-        gdpt_difference(scene, settings, kXi, kXi + 1, kY, kSamples, reconnect_shifts);
+    const test::MeanEstimate r =
+        test::gdpt_pixel_difference(scene, settings, kXi, kY, kSamples, 77, reconnect_shifts);
     std::cout << "pixels (" << kXi << ", " << kY << ") / (" << kXi + 1 << ", " << kY << "): PT "
               << pt[0] << " +- " << pt_se[0] << ", " << pt[1] << " +- " << pt_se[1]
               << "; GDPT auto " << g.mean << " +- " << g.standard_error << " ("

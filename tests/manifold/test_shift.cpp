@@ -10,6 +10,7 @@
 #include "manifold/shift.h"
 #include "mlt/gdpt.h"
 #include "tests/support/chi2.h"
+#include "tests/support/pixel_difference.h"
 #include "tests/support/scene_fixtures.h"
 
 namespace gdmlt::manifold {
@@ -154,61 +155,25 @@ TEST(ShiftMapping, DiffuseOnlySceneNeverUsesHalfVectorCopies) {
 
 TEST(GradientEstimator, MeanDifferenceBetweenTwoPixelsMatchesThePathTracedDifference) {
     // Pixels (7, 8) and (8, 8) of a 16x16 Cornell box (the tall box's edge crosses there).
-    // The GDPT estimate of I(8,8) - I(7,8) over 2 x 40000 base samples and the path tracer's
-    // two pixel values (40000 samples each) must agree within 4 combined standard errors.
+    // The GDPT estimate of I(8,8) - I(7,8) over 2 x 40000 base samples (seed 77) and the path
+    // tracer's two pixel values (40000 samples each, seed 99) must agree within 4 combined
+    // standard errors.
     const Scene scene = test::scene_from_xml(test::cornell_box_xml(16));
     mlt::GdptSettings settings;
     settings.path.max_depth = 6;
     constexpr int kSamples = 40000;
-    const int xi = 7, xj = 8, y = 8;
-    PathCounters counters;
     ShiftCounters shifts;
-    double sum = 0.0, sum2 = 0.0;
-    for (int s = 0; s < kSamples; ++s) {
-        // One sample based in each pixel: +x from i and -x from j, as GDPT combines them.
-        double d = 0.0;
-        for (int side = 0; side < 2; ++side) {
-            IndependentStream stream(
-                derive_stream(77, static_cast<std::uint64_t>(side), static_cast<std::uint64_t>(s)));
-            const Vec2f jitter = stream.next_2d();
-            const int px = side == 0 ? xi : xj;
-            std::array<bool, 4> inside = {side == 0, side == 1, false, false};
-            const mlt::GradientSample g = mlt::sample_gradients(
-                scene,
-                Vec2f(static_cast<float>(px) + jitter.x(), static_cast<float>(y) + jitter.y()),
-                stream, settings, inside, counters, shifts);
-            d += side == 0 ? luminance(g.difference[0]) : -luminance(g.difference[1]);
-        }
-        sum += d;
-        sum2 += d * d;
-    }
-    const double mean = sum / kSamples;
-    const double se = std::sqrt((sum2 / kSamples - mean * mean) / (kSamples - 1));
-
-    double pt[2], pt_se[2];
-    for (int side = 0; side < 2; ++side) {
-        double a = 0.0, a2 = 0.0;
-        for (int s = 0; s < kSamples; ++s) {
-            IndependentStream stream(
-                derive_stream(99, static_cast<std::uint64_t>(side), static_cast<std::uint64_t>(s)));
-            const Vec2f jitter = stream.next_2d();
-            const Ray ray = scene.camera().generate_ray(
-                Vec2f(static_cast<float>(side == 0 ? xi : xj) + jitter.x(),
-                      static_cast<float>(y) + jitter.y()));
-            const double v =
-                luminance(sample_path_radiance(scene, ray, stream, settings.path, counters));
-            a += v;
-            a2 += v * v;
-        }
-        pt[side] = a / kSamples;
-        pt_se[side] = std::sqrt((a2 / kSamples - pt[side] * pt[side]) / (kSamples - 1));
-    }
-    const double expected = pt[1] - pt[0];
-    const double combined = std::sqrt(se * se + pt_se[0] * pt_se[0] + pt_se[1] * pt_se[1]);
-    EXPECT_NEAR(mean, expected, 4.0 * combined)
-        << "GDPT " << mean << " +- " << se << ", PT " << expected;
+    const test::MeanEstimate g =
+        test::gdpt_pixel_difference(scene, settings, 7, 8, kSamples, 77, shifts);
+    const test::MeanEstimate a = test::path_traced_pixel(scene, settings.path, 7, 8, kSamples, 99);
+    const test::MeanEstimate b = test::path_traced_pixel(scene, settings.path, 8, 8, kSamples, 99);
+    const double pt_se =
+        std::sqrt(a.standard_error * a.standard_error + b.standard_error * b.standard_error);
+    const double combined = std::sqrt(g.standard_error * g.standard_error + pt_se * pt_se);
+    EXPECT_NEAR(g.mean, b.mean - a.mean, 4.0 * combined)
+        << "GDPT " << g.mean << " +- " << g.standard_error << ", PT " << b.mean - a.mean;
     // The gradient estimate is much less noisy than the difference of two PT estimates.
-    EXPECT_LT(se, 0.8 * std::sqrt(pt_se[0] * pt_se[0] + pt_se[1] * pt_se[1]));
+    EXPECT_LT(g.standard_error, 0.8 * pt_se);
 }
 
 }  // namespace

@@ -1,0 +1,66 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "tests/support/pixel_difference.h"
+
+#include <cmath>
+
+namespace gdmlt::test {
+namespace {
+
+struct Accumulator {
+    double sum = 0.0, sum2 = 0.0;
+    int n = 0;
+    void add(double v) {
+        sum += v;
+        sum2 += v * v;
+        ++n;
+    }
+    MeanEstimate estimate() const {
+        MeanEstimate e;
+        e.mean = sum / n;
+        e.standard_error = std::sqrt(std::max(0.0, sum2 / n - e.mean * e.mean) / (n - 1));
+        return e;
+    }
+};
+
+}  // namespace
+
+MeanEstimate gdpt_pixel_difference(const Scene& scene, const mlt::GdptSettings& settings, int xi,
+                                   int y, int samples, std::uint64_t seed,
+                                   manifold::ShiftCounters& shifts) {
+    PathCounters counters;
+    Accumulator acc;
+    for (int s = 0; s < samples; ++s) {
+        double d = 0.0;
+        for (int side = 0; side < 2; ++side) {
+            IndependentStream stream(derive_stream(seed, static_cast<std::uint64_t>(side),
+                                                   static_cast<std::uint64_t>(s)));
+            const Vec2f jitter = stream.next_2d();
+            const std::array<bool, 4> inside = {side == 0, side == 1, false, false};
+            const mlt::GradientSample g =
+                mlt::sample_gradients(scene,
+                                      Vec2f(static_cast<float>(xi + side) + jitter.x(),
+                                            static_cast<float>(y) + jitter.y()),
+                                      stream, settings, inside, counters, shifts);
+            d += side == 0 ? luminance(g.difference[0]) : -luminance(g.difference[1]);
+        }
+        acc.add(d);
+    }
+    return acc.estimate();
+}
+
+MeanEstimate path_traced_pixel(const Scene& scene, const PathSamplerSettings& settings, int x,
+                               int y, int samples, std::uint64_t seed) {
+    PathCounters counters;
+    Accumulator acc;
+    for (int s = 0; s < samples; ++s) {
+        IndependentStream stream(
+            derive_stream(seed, static_cast<std::uint64_t>(x), static_cast<std::uint64_t>(s)));
+        const Vec2f jitter = stream.next_2d();
+        const Ray ray = scene.camera().generate_ray(
+            Vec2f(static_cast<float>(x) + jitter.x(), static_cast<float>(y) + jitter.y()));
+        acc.add(luminance(sample_path_radiance(scene, ray, stream, settings, counters)));
+    }
+    return acc.estimate();
+}
+
+}  // namespace gdmlt::test

@@ -1,0 +1,27 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+// Estimates for checking the gradient estimator's unbiasedness on one pair of horizontally
+// neighbouring pixels: GDPT's difference against two path-traced pixel values.
+#include "core/scene/scene.h"
+#include "manifold/shift.h"
+#include "mlt/gdpt.h"
+
+namespace gdmlt::test {
+
+struct MeanEstimate {
+    double mean = 0.0;
+    double standard_error = 0.0;
+};
+
+/// GDPT's estimate of luminance I(xi + 1, y) - I(xi, y): per iteration one base sample in each
+/// pixel (+x shift from xi, -x shift from xi + 1, as GDPT combines them). Streams (seed, side,
+/// iteration).
+MeanEstimate gdpt_pixel_difference(const Scene& scene, const mlt::GdptSettings& settings, int xi,
+                                   int y, int samples, std::uint64_t seed,
+                                   manifold::ShiftCounters& shifts);
+
+/// The path tracer's luminance of pixel (x, y). Streams (seed, x, iteration).
+MeanEstimate path_traced_pixel(const Scene& scene, const PathSamplerSettings& settings, int x,
+                               int y, int samples, std::uint64_t seed);
+
+}  // namespace gdmlt::test
