@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "mlt/gdpt.h"
 
-#include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
 
 #include <chrono>
+
+#include "core/render/pixel_passes.h"
 
 namespace gdmlt::mlt {
 namespace {
@@ -14,8 +14,6 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
 }
-
-constexpr int kTileSize = 16;
 
 /// Per-pixel sums: primal, and the difference estimates of the samples based in this pixel
 /// towards each neighbour. Combined into the lattice differences only at the end, so that no
@@ -95,10 +93,7 @@ GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
     const Clock::time_point start = Clock::now();
     const Film& film = scene.camera().film();
     const int width = film.crop_width, height = film.crop_height;
-    const int tiles_x = (width + kTileSize - 1) / kTileSize,
-              tiles_y = (height + kTileSize - 1) / kTileSize;
     const bool timed = settings.time_budget_s > 0.0;
-    auto cancelled = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
 
     std::vector<PixelSums> sums(static_cast<std::size_t>(width) * height);
     tbb::enumerable_thread_specific<PathCounters> counters;
@@ -106,66 +101,35 @@ GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
     tbb::enumerable_thread_specific<std::uint64_t> dropped(0);
 
     GdptOutput out;
-    int spp_done = 0;
-    double seconds_per_spp = 0.0;
-    const int budget = std::max(settings.spp, 1);
-    while (spp_done < budget && !cancelled()) {
-        int pass = budget - spp_done;
-        if (timed) {
-            const double remaining = settings.time_budget_s - seconds_since(start);
-            if (remaining <= 0.0) break;
-            const int fit =
-                seconds_per_spp > 0.0 ? static_cast<int>(remaining / seconds_per_spp) : 1;
-            pass = std::clamp(fit, 1, std::min(16, pass));
-        }
-        const Clock::time_point pass_start = Clock::now();
-        tbb::parallel_for(
-            tbb::blocked_range<int>(0, tiles_x * tiles_y), [&](const tbb::blocked_range<int>& r) {
-                PathCounters& local = counters.local();
-                manifold::ShiftCounters& local_shifts = shift_counters.local();
-                for (int tile = r.begin(); tile != r.end(); ++tile) {
-                    if (cancelled()) return;
-                    const int x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
-                    for (int y = y0; y < std::min(y0 + kTileSize, height); ++y)
-                        for (int x = x0; x < std::min(x0 + kTileSize, width); ++x) {
-                            PixelSums& pixel = sums[static_cast<std::size_t>(y) * width + x];
-                            const std::array<bool, 4> inside = {x + 1 < width, x > 0,
-                                                                y + 1 < height, y > 0};
-                            const int film_x = x + film.crop_offset_x,
-                                      film_y = y + film.crop_offset_y;
-                            const auto key =
-                                static_cast<std::uint64_t>(film_y) * film.width + film_x;
-                            for (int s = spp_done; s < spp_done + pass; ++s) {
-                                IndependentStream stream(derive_stream(
-                                    settings.seed, key, static_cast<std::uint64_t>(s)));
-                                const Vec2f jitter = stream.next_2d();
-                                const GradientSample g =
-                                    sample_gradients(scene,
-                                                     Vec2f(static_cast<float>(film_x) + jitter.x(),
-                                                           static_cast<float>(film_y) + jitter.y()),
-                                                     stream, settings, inside, local, local_shifts);
-                                ++pixel.samples;
-                                bool finite = is_finite(g.primal);
-                                for (const Rgb& d : g.difference) finite = finite && is_finite(d);
-                                if (!finite) {
-                                    ++dropped.local();
-                                    continue;
-                                }
-                                add(pixel.primal, g.primal);
-                                for (std::size_t i = 0; i < 4; ++i)
-                                    add(pixel.difference[i], g.difference[i]);
-                            }
-                        }
-                }
-            });
-        if (cancelled()) break;
-        spp_done += pass;
-        seconds_per_spp = seconds_since(pass_start) / pass;
-        if (progress)
-            progress(timed ? std::min(1.0, seconds_since(start) / settings.time_budget_s)
-                           : static_cast<double>(spp_done) / budget,
-                     seconds_since(start));
-    }
+    PixelPassSettings passes;
+    passes.spp = settings.spp;
+    passes.time_budget_s = settings.time_budget_s;
+    passes.seed = settings.seed;
+    passes.max_pass_spp = 16;
+    const PixelPassResult done = run_pixel_passes(
+        film, passes, cancel,
+        [&](int x, int y, const Vec2f& film_position, IndependentStream& stream) {
+            PixelSums& pixel = sums[static_cast<std::size_t>(y) * width + x];
+            const std::array<bool, 4> inside = {x + 1 < width, x > 0, y + 1 < height, y > 0};
+            const GradientSample g =
+                sample_gradients(scene, film_position, stream, settings, inside, counters.local(),
+                                 shift_counters.local());
+            ++pixel.samples;
+            bool finite = is_finite(g.primal);
+            for (const Rgb& d : g.difference) finite = finite && is_finite(d);
+            if (!finite) {
+                ++dropped.local();
+                return;
+            }
+            add(pixel.primal, g.primal);
+            for (std::size_t i = 0; i < 4; ++i) add(pixel.difference[i], g.difference[i]);
+        },
+        [&](int spp_completed) {
+            if (progress)
+                progress(timed ? std::min(1.0, seconds_since(start) / settings.time_budget_s)
+                               : static_cast<double>(spp_completed) / std::max(settings.spp, 1),
+                         seconds_since(start));
+        });
 
     // Lattice differences: dx(x, y) estimates I(x+1, y) - I(x, y) from the +x shifts of
     // pixel (x, y) and the -x shifts of pixel (x+1, y), each an estimator of its own sign.
@@ -201,9 +165,9 @@ GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
     for (const manifold::ShiftCounters& c : shift_counters) s.shifts += c;
     for (std::uint64_t d : dropped) s.nonfinite_dropped += d;
     for (const PixelSums& p : sums) s.samples += p.samples;
-    s.spp_completed = spp_done;
+    s.spp_completed = done.spp_completed;
     s.render_s = seconds_since(start);
-    s.interrupted = cancelled();
+    s.interrupted = done.interrupted;
     return out;
 }
 

@@ -1,0 +1,109 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+// The per-pixel sampling loop every pixel-based integrator shares (path tracing, GDPT): passes
+// of samples per pixel over 16x16 tiles on all cores, one PCG stream per (seed, pixel, sample
+// index), a time budget, and Ctrl-C polled per pixel. Because a sample's random numbers depend
+// only on (seed, pixel, index) and each pixel is owned by one tile, results are bit-identical
+// whatever the thread count, tiling or pass split.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+
+#include "core/camera/camera.h"
+#include "core/sampling/sample_stream.h"
+
+namespace gdmlt {
+
+struct PixelPassSettings {
+    int spp = 16;                // budget (upper bound with a time budget)
+    double time_budget_s = 0.0;  // 0: none
+    std::uint64_t seed = 0;
+    int max_pass_spp = 64;  // with a time budget: the largest pass
+};
+
+struct PixelPassResult {
+    int spp_completed = 0;  // samples every pixel received
+    int passes = 0;
+    bool interrupted = false;
+};
+
+/// Calls `sample(x, y, film_position, stream)` for every crop-window pixel (x, y) and sample
+/// index, in passes; `on_pass_done(spp_completed)` after each pass, `samples_done` (optional)
+/// counts samples as tiles finish. `sample` must only write state owned by pixel (x, y).
+template <typename SampleFn, typename PassFn>
+PixelPassResult run_pixel_passes(const Film& film, const PixelPassSettings& settings,
+                                 const std::atomic<bool>* cancel, SampleFn&& sample,
+                                 PassFn&& on_pass_done,
+                                 std::atomic<std::uint64_t>* samples_done = nullptr) {
+    using Clock = std::chrono::steady_clock;
+    constexpr int kTileSize = 16;
+    const auto seconds_since = [](Clock::time_point t) {
+        return std::chrono::duration<double>(Clock::now() - t).count();
+    };
+    const auto cancelled = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
+    const int width = film.crop_width, height = film.crop_height;
+    const int tiles_x = (width + kTileSize - 1) / kTileSize;
+    const int tile_count = tiles_x * ((height + kTileSize - 1) / kTileSize);
+    const int budget = std::max(settings.spp, 1);
+    const bool timed = settings.time_budget_s > 0.0;
+    const Clock::time_point start = Clock::now();
+
+    PixelPassResult result;
+    double seconds_per_spp = 0.0;
+    while (result.spp_completed < budget && !cancelled()) {
+        // Without a time budget: everything in one pass. With one: as many samples as the
+        // measured speed says fit into the remaining time.
+        int pass = budget - result.spp_completed;
+        if (timed) {
+            const double remaining = settings.time_budget_s - seconds_since(start);
+            if (remaining <= 0.0) break;
+            const int fit =
+                seconds_per_spp > 0.0 ? static_cast<int>(remaining / seconds_per_spp) : 1;
+            pass = std::clamp(fit, 1, std::min(settings.max_pass_spp, pass));
+        }
+        const int first = result.spp_completed;
+        const Clock::time_point pass_start = Clock::now();
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, tile_count), [&](const tbb::blocked_range<int>& r) {
+                for (int tile = r.begin(); tile != r.end(); ++tile) {
+                    const int x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
+                    const int x1 = std::min(x0 + kTileSize, width),
+                              y1 = std::min(y0 + kTileSize, height);
+                    for (int y = y0; y < y1; ++y)
+                        for (int x = x0; x < x1; ++x) {
+                            // Per pixel, not per tile: a tile of a high-spp pass can take minutes.
+                            if (cancelled()) return;
+                            const int film_x = x + film.crop_offset_x,
+                                      film_y = y + film.crop_offset_y;
+                            const auto pixel =
+                                static_cast<std::uint64_t>(film_y) * film.width + film_x;
+                            for (int s = first; s < first + pass; ++s) {
+                                IndependentStream stream(derive_stream(
+                                    settings.seed, pixel, static_cast<std::uint64_t>(s)));
+                                const Vec2f jitter = stream.next_2d();
+                                sample(x, y,
+                                       Vec2f(static_cast<float>(film_x) + jitter.x(),
+                                             static_cast<float>(film_y) + jitter.y()),
+                                       stream);
+                            }
+                        }
+                    if (samples_done)
+                        samples_done->fetch_add(
+                            static_cast<std::uint64_t>((x1 - x0) * (y1 - y0)) * pass,
+                            std::memory_order_relaxed);
+                }
+            });
+        if (cancelled()) break;
+        result.spp_completed += pass;
+        ++result.passes;
+        seconds_per_spp = seconds_since(pass_start) / pass;
+        on_pass_done(result.spp_completed);
+    }
+    result.interrupted = cancelled();
+    return result;
+}
+
+}  // namespace gdmlt
