@@ -60,8 +60,12 @@ PixelPassResult run_pixel_passes(const Film& film, const PixelPassSettings& sett
         if (timed) {
             const double remaining = settings.time_budget_s - seconds_since(start);
             if (remaining <= 0.0) break;
+            // Passes of at most about a second, so that a change of machine load between the
+            // speed measurement and the pass overshoots the budget by little (equal-time
+            // comparisons depend on it).
+            const double pass_seconds = std::min(remaining, 1.0);
             const int fit =
-                seconds_per_spp > 0.0 ? static_cast<int>(remaining / seconds_per_spp) : 1;
+                seconds_per_spp > 0.0 ? static_cast<int>(pass_seconds / seconds_per_spp) : 1;
             pass = std::clamp(fit, 1, std::min(settings.max_pass_spp, pass));
         }
         const int first = result.spp_completed;
