@@ -19,17 +19,6 @@
 namespace gdmlt::manifold {
 namespace {
 
-Path sample_base(const Scene& scene, std::uint64_t key, PathCounters& counters) {
-    IndependentStream stream(key);
-    const Film& film = scene.camera().film();
-    const Vec2f u = stream.next_2d();
-    const Vec2f film_position(1.f + u.x() * static_cast<float>(film.width - 2),
-                              1.f + u.y() * static_cast<float>(film.height - 2));
-    PathSamplerSettings settings;
-    settings.max_depth = 8;
-    return sample_camera_path(scene, film_position, stream, settings, counters);
-}
-
 // A pixel pair on the floor caustic of the 32^2 glass-sphere box (probe: see the test below).
 constexpr int kXi = 20, kY = 28;
 
@@ -57,8 +46,8 @@ TEST(ManifoldShift, ShiftAndShiftBackReturnsTheBasePathThroughAGlassSphere) {
     double worst_reciprocity = 0.0;
     constexpr float kTolerance = 1e-4f, kFirstTolerance = 2e-2f;
     for (int t = 0; t < 200000 && attempts < 2500; ++t) {
-        const Path base =
-            sample_base(scene, derive_stream(23, static_cast<std::uint64_t>(t)), counters);
+        const Path base = test::sample_interior_camera_path(
+            scene, derive_stream(23, static_cast<std::uint64_t>(t)), counters);
         const ShiftResult there = shift_path(scene, base, Vec2f(1.f, 0.f), ShiftKind::Auto, shifts);
         if (there.manifold_chain_at < 0 && !is_manifold_failure(there.status)) continue;
         ++attempts;
@@ -165,8 +154,8 @@ TEST(ManifoldShift, JacobianMatchesFiniteDifferencesOfTheMap) {
     double worst = 0.0, worst_shift = 0.0;
     const double h = 1e-5;
     for (int t = 0; t < 100000 && checked < 200; ++t) {
-        const Path base =
-            sample_base(scene, derive_stream(31, static_cast<std::uint64_t>(t)), counters);
+        const Path base = test::sample_interior_camera_path(
+            scene, derive_stream(31, static_cast<std::uint64_t>(t)), counters);
         const ShiftResult r = shift_path(scene, base, Vec2f(1.f, 0.f), ShiftKind::Auto, shifts);
         if (r.status != ShiftStatus::Ok || r.manifold_chain_at < 0) continue;
         const auto k = static_cast<std::size_t>(r.manifold_chain_at - 1);

@@ -16,18 +16,6 @@
 namespace gdmlt::manifold {
 namespace {
 
-Path sample_base(const Scene& scene, std::uint64_t key, PathCounters& counters) {
-    IndependentStream stream(key);
-    const Film& film = scene.camera().film();
-    const Vec2f u = stream.next_2d();
-    // Stay one pixel away from the border so that both shifts stay on the film.
-    const Vec2f film_position(1.f + u.x() * static_cast<float>(film.width - 2),
-                              1.f + u.y() * static_cast<float>(film.height - 2));
-    PathSamplerSettings settings;
-    settings.max_depth = 8;
-    return sample_camera_path(scene, film_position, stream, settings, counters);
-}
-
 struct InvertibilityReport {
     int trials = 0, both_ok = 0, round_trip_ok = 0;
 };
@@ -37,8 +25,8 @@ InvertibilityReport check_invertibility(const Scene& scene, int trials, ShiftKin
     PathCounters counters;
     ShiftCounters shifts;
     for (int t = 0; t < trials; ++t) {
-        const Path base =
-            sample_base(scene, derive_stream(17, static_cast<std::uint64_t>(t)), counters);
+        const Path base = test::sample_interior_camera_path(
+            scene, derive_stream(17, static_cast<std::uint64_t>(t)), counters);
         if (base.vertices.empty()) continue;
         ++report.trials;
         const ShiftResult there = shift_path(scene, base, Vec2f(1.f, 0.f), kind, shifts);
@@ -120,8 +108,8 @@ TEST(ShiftMapping, ReconnectionJacobianMatchesFiniteDifferences) {
     ShiftCounters shifts;
     int checked = 0;
     for (int t = 0; t < 400 && checked < 100; ++t) {
-        const Path base =
-            sample_base(scene, derive_stream(5, static_cast<std::uint64_t>(t)), counters);
+        const Path base = test::sample_interior_camera_path(
+            scene, derive_stream(5, static_cast<std::uint64_t>(t)), counters);
         const ShiftResult r = shift_path(scene, base, Vec2f(1.f, 0.f), ShiftKind::Auto, shifts);
         if (r.status != ShiftStatus::Ok || r.reconnected_at != 1) continue;
         const PathVertex& x0 = base.vertices[0];
@@ -145,8 +133,8 @@ TEST(ShiftMapping, DiffuseOnlySceneNeverUsesHalfVectorCopies) {
     PathCounters counters;
     ShiftCounters shifts;
     for (int t = 0; t < 500; ++t) {
-        const Path base =
-            sample_base(scene, derive_stream(9, static_cast<std::uint64_t>(t)), counters);
+        const Path base = test::sample_interior_camera_path(
+            scene, derive_stream(9, static_cast<std::uint64_t>(t)), counters);
         shift_path(scene, base, Vec2f(0.f, 1.f), ShiftKind::Auto, shifts);
     }
     EXPECT_EQ(shifts.half_vector_steps, 0u);
@@ -228,8 +216,8 @@ TEST(ShiftMapping, HalfVectorCopyJacobianMatchesFiniteDifferences) {
         ShiftCounters shifts;
         int checked = 0;
         for (int t = 0; t < 300 && checked < 60; ++t) {
-            const Path base =
-                sample_base(scene, derive_stream(31, static_cast<std::uint64_t>(t)), counters);
+            const Path base = test::sample_interior_camera_path(
+                scene, derive_stream(31, static_cast<std::uint64_t>(t)), counters);
             if (base.vertices.empty() || base.vertices[0].roughness != RoughnessClass::Glossy ||
                 !base.vertices[0].continued || base.vertices[0].delta)
                 continue;

@@ -24,6 +24,17 @@ struct Accumulator {
 
 }  // namespace
 
+Path sample_interior_camera_path(const Scene& scene, std::uint64_t key, PathCounters& counters) {
+    IndependentStream stream(key);
+    const Film& film = scene.camera().film();
+    const Vec2f u = stream.next_2d();
+    const Vec2f film_position(1.f + u.x() * static_cast<float>(film.width - 2),
+                              1.f + u.y() * static_cast<float>(film.height - 2));
+    PathSamplerSettings settings;
+    settings.max_depth = 8;
+    return sample_camera_path(scene, film_position, stream, settings, counters);
+}
+
 MeanEstimate gdpt_pixel_difference(const Scene& scene, const mlt::GdptSettings& settings, int xi,
                                    int y, int samples, std::uint64_t seed,
                                    manifold::ShiftCounters& shifts) {

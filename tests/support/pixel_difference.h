@@ -2,6 +2,7 @@
 #pragma once
 // Estimates for checking the gradient estimator's unbiasedness on one pair of horizontally
 // neighbouring pixels: GDPT's difference against two path-traced pixel values.
+#include "core/path/path.h"
 #include "core/scene/scene.h"
 #include "manifold/shift.h"
 #include "mlt/gdpt.h"
@@ -12,6 +13,10 @@ struct MeanEstimate {
     double mean = 0.0;
     double standard_error = 0.0;
 };
+
+/// A camera path (max_depth 8) through a random film position at least one pixel from the
+/// border, so that shifts to every neighbour stay on the film. Stream `key`.
+Path sample_interior_camera_path(const Scene& scene, std::uint64_t key, PathCounters& counters);
 
 /// GDPT's estimate of luminance I(xi + 1, y) - I(xi, y): per iteration one base sample in each
 /// pixel (+x shift from xi, -x shift from xi + 1, as GDPT combines them). Streams (seed, side,
