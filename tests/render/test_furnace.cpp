@@ -12,21 +12,11 @@ namespace gdmlt {
 namespace {
 
 RenderOutput render(const Scene& scene, int spp, std::uint64_t seed) {
-    RenderSettings settings;
-    settings.spp = spp;
-    settings.seed = seed;
-    settings.path.max_depth = -1;
-    settings.path.rr_depth = 5;
-    return render_path(scene, settings);
+    return test::render_unbounded(scene, spp, seed);
 }
 
 void expect_mean(const Image& image, const Rgb& expected) {
-    for (int c = 0; c < 3; ++c) {
-        const test::PixelStatistics s = test::pixel_statistics(image.pixels, c);
-        EXPECT_NEAR(s.mean, expected[c], 5.0 * s.standard_error + 1e-5 * expected[c])
-            << "channel " << c << ", standard error " << s.standard_error;
-        EXPECT_LT(s.standard_error, 0.02 * expected[c]) << "budget too small for a meaningful test";
-    }
+    test::expect_image_mean(image, expected, 1e-5);
 }
 
 TEST(Furnace, ConvexDiffuseSphereInConstantLightReflectsAlbedoTimesRadiance) {

@@ -14,22 +14,11 @@ namespace gdmlt {
 namespace {
 
 RenderOutput render(const Scene& scene, int spp, std::uint64_t seed) {
-    RenderSettings settings;
-    settings.spp = spp;
-    settings.seed = seed;
-    settings.path.max_depth = -1;
-    settings.path.rr_depth = 5;
-    return render_path(scene, settings);
+    return test::render_unbounded(scene, spp, seed);
 }
 
 void expect_mean(const RenderOutput& out, const Rgb& expected, double relative_model_error) {
-    for (int c = 0; c < 3; ++c) {
-        const test::PixelStatistics s = test::pixel_statistics(out.image.pixels, c);
-        EXPECT_NEAR(s.mean, expected[c],
-                    5.0 * s.standard_error + relative_model_error * expected[c])
-            << "channel " << c << ", standard error " << s.standard_error;
-        EXPECT_LT(s.standard_error, 0.02 * expected[c]) << "budget too small for a meaningful test";
-    }
+    test::expect_image_mean(out.image, expected, relative_model_error);
     EXPECT_EQ(out.stats.nonfinite_samples_dropped, 0u);
 }
 

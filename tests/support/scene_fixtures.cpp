@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "tests/support/scene_fixtures.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 
 #include "core/scene/scene_desc.h"
@@ -61,6 +63,25 @@ PixelStatistics pixel_statistics(const std::vector<float>& rgb, int channel) {
     const double variance = std::max(0.0, sum2 / static_cast<double>(n) - s.mean * s.mean);
     s.standard_error = std::sqrt(variance / static_cast<double>(n - 1));
     return s;
+}
+
+RenderOutput render_unbounded(const Scene& scene, int spp, std::uint64_t seed) {
+    RenderSettings settings;
+    settings.spp = spp;
+    settings.seed = seed;
+    settings.path.max_depth = -1;
+    settings.path.rr_depth = 5;
+    return render_path(scene, settings);
+}
+
+void expect_image_mean(const Image& image, const Rgb& expected, double relative_model_error) {
+    for (int c = 0; c < 3; ++c) {
+        const PixelStatistics s = pixel_statistics(image.pixels, c);
+        EXPECT_NEAR(s.mean, expected[c],
+                    5.0 * s.standard_error + relative_model_error * expected[c])
+            << "channel " << c << ", standard error " << s.standard_error;
+        EXPECT_LT(s.standard_error, 0.02 * expected[c]) << "budget too small for a meaningful test";
+    }
 }
 
 }  // namespace gdmlt::test

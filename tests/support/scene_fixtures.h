@@ -3,6 +3,7 @@
 // Scenes built in code for tests: a Mitsuba XML body wrapped into a <scene>, parsed and built.
 #include <string>
 
+#include "core/render/render_path.h"
 #include "core/scene/scene.h"
 
 namespace gdmlt::test {
@@ -23,5 +24,13 @@ struct PixelStatistics {
     double standard_error = 0.0;
 };
 PixelStatistics pixel_statistics(const std::vector<float>& rgb, int channel);
+
+/// The furnace tests' render: path tracer, unbounded depth, Russian roulette from depth 5.
+RenderOutput render_unbounded(const Scene& scene, int spp, std::uint64_t seed);
+
+/// Every channel's image mean equals `expected` within 5 standard errors (from the per-pixel
+/// spread) plus `relative_model_error` * expected, and the budget makes the standard error
+/// smaller than 2% of the expected value (otherwise the test could not fail).
+void expect_image_mean(const Image& image, const Rgb& expected, double relative_model_error);
 
 }  // namespace gdmlt::test
