@@ -21,6 +21,7 @@
 #include "core/render/render_path.h"
 #include "core/scene/scene.h"
 #include "core/scene/scene_desc.h"
+#include "mlt/gdmlt.h"
 #include "mlt/gdpt.h"
 #include "mlt/pssmlt.h"
 #include "reconstruct/reconstruct.h"
@@ -64,6 +65,10 @@ struct RenderOptions {
     std::string reconstruct_method;
     std::optional<double> alpha;
     std::string shift;
+    // GDMLT knobs.
+    std::optional<double> primal_weight;
+    std::optional<int> very_direct_samples;
+    std::optional<double> bootstrap_error;
 };
 
 /// What an integrator hands back to the CLI: the image, its statistics, whether it is partial.
@@ -147,6 +152,86 @@ void apply_sample_budget(const Scene& scene, const RenderOptions& options, Setti
     settings.path.hide_emitters = scene.integrator().hide_emitters;
 }
 
+manifold::ShiftKind parse_shift(const std::string& shift) {
+    if (shift == "auto") return manifold::ShiftKind::Auto;
+    if (shift == "reconnect") return manifold::ShiftKind::Reconnect;
+    if (shift == "halfvector") return manifold::ShiftKind::HalfVector;
+    if (shift == "replay") return manifold::ShiftKind::Replay;
+    throw InputError("--shift must be auto, reconnect, halfvector or replay");
+}
+
+reconstruct::ReconstructConfig reconstruct_config(const RenderOptions& options) {
+    reconstruct::ReconstructConfig rc;
+    if (!options.reconstruct_method.empty()) {
+        const auto method = reconstruct::parse_method(options.reconstruct_method);
+        if (!method) throw InputError("--reconstruct must be l1, l2 or cv");
+        rc.method = *method;
+    }
+    if (options.alpha) rc.alpha = *options.alpha;
+    return rc;
+}
+
+json shifts_json(const manifold::ShiftCounters& shifts) {
+    json by_status = json::object();
+    for (int i = 0; i < static_cast<int>(manifold::ShiftStatus::Count); ++i)
+        by_status[manifold::to_string(static_cast<manifold::ShiftStatus>(i))] =
+            shifts.by_status[static_cast<std::size_t>(i)];
+    return {{"total", shifts.shifts},
+            {"by_status", by_status},
+            {"reconnections", shifts.reconnections},
+            {"half_vector_steps", shifts.half_vector_steps},
+            {"replay_steps", shifts.replay_steps},
+            {"manifold_shifts", shifts.manifold_shifts},
+            {"manifold_walks", shifts.manifold_walks},
+            {"manifold_newton_iterations", shifts.manifold_iterations}};
+}
+
+/// The statistics every chain-runner integrator reports (PSSMLT, GDMLT).
+json chain_stats_json(const mlt::ChainStats& s) {
+    auto rate = [](std::uint64_t accepted, std::uint64_t proposed) {
+        return proposed > 0 ? static_cast<double>(accepted) / static_cast<double>(proposed) : 0.0;
+    };
+    return {
+        {"bootstrap_s", s.bootstrap_s},
+        {"chains_s", s.chains_s},
+        {"chains", s.chains},
+        {"mutations", s.mutations},
+        {"mutations_per_s", s.chains_s > 0 ? static_cast<double>(s.mutations) / s.chains_s : 0.0},
+        {"acceptance",
+         {{"large", rate(s.large_accepted, s.large_proposed)},
+          {"small", rate(s.small_accepted, s.small_proposed)},
+          {"large_proposed", s.large_proposed},
+          {"small_proposed", s.small_proposed}}},
+        {"longest_rejection_streak", s.longest_rejection_streak},
+        {"median_longest_rejection_streak_per_chain", s.median_longest_rejection_streak},
+        {"chain_brightness",
+         {{"mean", s.chain_brightness_mean},
+          {"relative_spread", s.chain_brightness_relative_spread}}},
+        {"normalisation",
+         {{"b", s.b},
+          {"b_standard_error", s.b_standard_error},
+          {"b_independent", s.b_independent},
+          {"b_independent_standard_error", s.b_independent_standard_error},
+          {"bootstrap_samples", s.bootstrap_samples},
+          {"bootstrap_nonzero", s.bootstrap_nonzero}}},
+        {"replay_mismatches", s.replay_mismatches},
+        {"nonfinite_samples_dropped", s.nonfinite_dropped}};
+}
+
+/// Mutation knobs shared by the chain integrators; defaults < scene < command line.
+void apply_mutation_options(const RenderOptions& options, mlt::MutationSettings& mutation,
+                            int& chains, int& bootstrap) {
+    if (options.p_large) mutation.p_large = *options.p_large;
+    if (!options.mutation_size.empty()) {
+        if (options.mutation_size.size() != 2) throw InputError("--mutation-size expects S1,S2");
+        mutation.s1 = options.mutation_size[0];
+        mutation.s2 = options.mutation_size[1];
+    }
+    if (options.image_mutation_pixels) mutation.image_s2_pixels = *options.image_mutation_pixels;
+    if (options.chains) chains = *options.chains;
+    if (options.bootstrap) bootstrap = *options.bootstrap;
+}
+
 IntegratorResult run_path(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
     RenderSettings settings;
     apply_sample_budget(scene, options, settings);
@@ -180,16 +265,7 @@ IntegratorResult run_path(const Scene& scene, const RenderOptions& options, Prog
 
 IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
     mlt::PssmltSettings settings = mlt::pssmlt_settings_from_scene(scene.integrator());
-    if (options.p_large) settings.mutation.p_large = *options.p_large;
-    if (!options.mutation_size.empty()) {
-        if (options.mutation_size.size() != 2) throw InputError("--mutation-size expects S1,S2");
-        settings.mutation.s1 = options.mutation_size[0];
-        settings.mutation.s2 = options.mutation_size[1];
-    }
-    if (options.image_mutation_pixels)
-        settings.mutation.image_s2_pixels = *options.image_mutation_pixels;
-    if (options.chains) settings.chains = *options.chains;
-    if (options.bootstrap) settings.bootstrap_samples = *options.bootstrap;
+    apply_mutation_options(options, settings.mutation, settings.chains, settings.bootstrap_samples);
     if (options.mpp) settings.mutations_per_pixel = *options.mpp;
     if (options.direct_samples) settings.direct_samples = *options.direct_samples;
     // --spp gives a PSSMLT budget of as many mutations per pixel.
@@ -223,37 +299,10 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
     const mlt::PssmltStats& s = out.stats;
     r.image = out.image;
     r.partial = s.interrupted;
-    auto rate = [](std::uint64_t accepted, std::uint64_t proposed) {
-        return proposed > 0 ? static_cast<double>(accepted) / static_cast<double>(proposed) : 0.0;
-    };
-    r.stats = {
-        {"render_s", s.total_s},
-        {"bootstrap_s", s.bootstrap_s},
-        {"chains_s", s.chains_s},
-        {"direct_s", s.direct_s},
-        {"chains", s.chains},
-        {"mutations", s.mutations},
-        {"mutations_per_s", s.chains_s > 0 ? static_cast<double>(s.mutations) / s.chains_s : 0.0},
-        {"acceptance",
-         {{"large", rate(s.large_accepted, s.large_proposed)},
-          {"small", rate(s.small_accepted, s.small_proposed)},
-          {"large_proposed", s.large_proposed},
-          {"small_proposed", s.small_proposed}}},
-        {"longest_rejection_streak", s.longest_rejection_streak},
-        {"median_longest_rejection_streak_per_chain", s.median_longest_rejection_streak},
-        {"chain_brightness",
-         {{"mean", s.chain_brightness_mean},
-          {"relative_spread", s.chain_brightness_relative_spread}}},
-        {"normalisation",
-         {{"b", s.b},
-          {"b_standard_error", s.b_standard_error},
-          {"b_independent", s.b_independent},
-          {"b_independent_standard_error", s.b_independent_standard_error},
-          {"bootstrap_samples", s.bootstrap_samples},
-          {"bootstrap_nonzero", s.bootstrap_nonzero}}},
-        {"replay_mismatches", s.replay_mismatches},
-        {"nonfinite_samples_dropped", s.nonfinite_dropped},
-        {"rays", path_counters_json(s.counters, s.total_s)}};
+    r.stats = chain_stats_json(s);
+    r.stats["render_s"] = s.total_s;
+    r.stats["direct_s"] = s.direct_s;
+    r.stats["rays"] = path_counters_json(s.counters, s.total_s);
     return r;
 }
 
@@ -261,23 +310,8 @@ IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, Prog
     mlt::GdptSettings settings;
     apply_sample_budget(scene, options, settings);
     const std::string shift = options.shift.empty() ? "auto" : options.shift;
-    if (shift == "auto")
-        settings.shift = manifold::ShiftKind::Auto;
-    else if (shift == "reconnect")
-        settings.shift = manifold::ShiftKind::Reconnect;
-    else if (shift == "halfvector")
-        settings.shift = manifold::ShiftKind::HalfVector;
-    else if (shift == "replay")
-        settings.shift = manifold::ShiftKind::Replay;
-    else
-        throw InputError("--shift must be auto, reconnect, halfvector or replay");
-    reconstruct::ReconstructConfig rc;
-    if (!options.reconstruct_method.empty()) {
-        const auto method = reconstruct::parse_method(options.reconstruct_method);
-        if (!method) throw InputError("--reconstruct must be l1, l2 or cv");
-        rc.method = *method;
-    }
-    if (options.alpha) rc.alpha = *options.alpha;
+    settings.shift = parse_shift(shift);
+    const reconstruct::ReconstructConfig rc = reconstruct_config(options);
 
     IntegratorResult r;
     r.seed = settings.seed;
@@ -295,21 +329,17 @@ IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, Prog
         scene, settings, &g_interrupted,
         [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
     const auto solve_start = std::chrono::steady_clock::now();
-    const reconstruct::ReconstructResult solved =
-        reconstruct::reconstruct(reconstruct::make_reconstruct_input(out.buffers), rc);
+    const reconstruct::ReconstructResult solved = reconstruct::reconstruct_buffers(out.buffers, rc);
     const double solve_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - solve_start).count();
     r.image = solved.image;
     r.extra_layers = {ExrLayer{"primal", {"R", "G", "B"}, out.buffers.primal},
                       ExrLayer{"dx", {"R", "G", "B"}, out.buffers.dx},
                       ExrLayer{"dy", {"R", "G", "B"}, out.buffers.dy},
+                      ExrLayer{"very_direct", {"R", "G", "B"}, out.buffers.very_direct},
                       ExrLayer{"sample_count", {"Y"}, out.buffers.sample_count}};
     const mlt::GdptStats& s = out.stats;
     r.partial = s.interrupted;
-    json by_status = json::object();
-    for (int i = 0; i < static_cast<int>(manifold::ShiftStatus::Count); ++i)
-        by_status[manifold::to_string(static_cast<manifold::ShiftStatus>(i))] =
-            s.shifts.by_status[static_cast<std::size_t>(i)];
     r.stats = {
         {"render_s", s.render_s + solve_s},
         {"sampling_s", s.render_s},
@@ -318,16 +348,76 @@ IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, Prog
         {"spp_completed", s.spp_completed},
         {"samples_per_s", s.render_s > 0 ? static_cast<double>(s.samples) / s.render_s : 0.0},
         {"rays", path_counters_json(s.counters, s.render_s)},
-        {"shifts",
-         {{"total", s.shifts.shifts},
-          {"by_status", by_status},
-          {"reconnections", s.shifts.reconnections},
-          {"half_vector_steps", s.shifts.half_vector_steps},
-          {"replay_steps", s.shifts.replay_steps},
-          {"manifold_shifts", s.shifts.manifold_shifts},
-          {"manifold_walks", s.shifts.manifold_walks},
-          {"manifold_newton_iterations", s.shifts.manifold_iterations}}},
+        {"shifts", shifts_json(s.shifts)},
         {"nonfinite_samples_dropped", s.nonfinite_dropped}};
+    return r;
+}
+
+IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
+    mlt::GdmltSettings settings = mlt::gdmlt_settings_from_scene(scene.integrator());
+    apply_mutation_options(options, settings.mutation, settings.chains, settings.bootstrap_samples);
+    if (options.mpp) settings.mutations_per_pixel = *options.mpp;
+    // --spp gives a budget of as many proposals per pixel.
+    if (!options.mpp && options.spp > 0) settings.mutations_per_pixel = options.spp;
+    if (options.primal_weight) settings.primal_weight = *options.primal_weight;
+    if (options.very_direct_samples) settings.very_direct_samples = *options.very_direct_samples;
+    if (options.bootstrap_error) settings.bootstrap_relative_error = *options.bootstrap_error;
+    settings.time_budget_s = options.time_s;
+    settings.seed = options.seed.value_or(scene.sampler().seed);
+    if (options.max_depth) settings.path.max_depth = *options.max_depth;
+    const std::string shift = options.shift.empty() ? "auto" : options.shift;
+    settings.shift = parse_shift(shift);
+    mlt::validate_gdmlt_settings(settings, FileLoc{"command line", 0, 0});
+    const reconstruct::ReconstructConfig rc = reconstruct_config(options);
+
+    IntegratorResult r;
+    r.seed = settings.seed;
+    r.config = {{"integrator", "gdmlt"},
+                {"mutations_per_pixel", options.time_s > 0.0 && !options.mpp && options.spp == 0
+                                            ? json(nullptr)
+                                            : json(settings.mutations_per_pixel)},
+                {"time_budget_s", settings.time_budget_s},
+                {"seed", settings.seed},
+                {"shift", shift},
+                {"neighbours", "lattice"},
+                {"primal_weight", settings.primal_weight},
+                {"reconstruct", reconstruct::to_string(rc.method)},
+                {"alpha", rc.alpha},
+                {"p_large", settings.mutation.p_large},
+                {"mutation_size", {settings.mutation.s1, settings.mutation.s2}},
+                {"image_mutation_size_pixels", settings.mutation.image_s2_pixels},
+                {"chains", settings.chains},
+                {"bootstrap_samples", settings.bootstrap_samples},
+                {"bootstrap_relative_error", settings.bootstrap_relative_error},
+                {"very_direct_samples", settings.very_direct_samples},
+                {"kelemen_style_weights", settings.kelemen_weights},
+                {"max_depth", settings.path.max_depth},
+                {"hide_emitters", settings.path.hide_emitters}};
+    const mlt::GdmltOutput out = mlt::render_gdmlt(
+        scene, settings, &g_interrupted,
+        [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
+    const auto solve_start = std::chrono::steady_clock::now();
+    const reconstruct::ReconstructResult solved = reconstruct::reconstruct_buffers(out.buffers, rc);
+    const double solve_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - solve_start).count();
+    r.image = solved.image;
+    r.extra_layers = {ExrLayer{"primal", {"R", "G", "B"}, out.buffers.primal},
+                      ExrLayer{"dx", {"R", "G", "B"}, out.buffers.dx},
+                      ExrLayer{"dy", {"R", "G", "B"}, out.buffers.dy},
+                      ExrLayer{"very_direct", {"R", "G", "B"}, out.buffers.very_direct},
+                      ExrLayer{"sample_count", {"Y"}, out.buffers.sample_count},
+                      ExrLayer{"sample_density", {"Y"}, out.sample_density}};
+    const mlt::GdmltStats& s = out.stats;
+    r.partial = s.interrupted;
+    r.stats = chain_stats_json(s);
+    r.stats["render_s"] = s.total_s + solve_s;
+    r.stats["sampling_s"] = s.total_s;
+    r.stats["very_direct_s"] = s.very_direct_s;
+    r.stats["reconstruct_s"] = solve_s;
+    r.stats["proposals_per_s"] =
+        s.chains_s > 0 ? static_cast<double>(s.mutations) / s.chains_s : 0.0;
+    r.stats["rays"] = path_counters_json(s.counters, s.total_s);
+    r.stats["shifts"] = shifts_json(s.shifts);
     return r;
 }
 
@@ -337,9 +427,10 @@ int run_render(const RenderOptions& options) {
     // Effective configuration: defaults < scene file < command line.
     const std::string integrator =
         options.integrator.empty() ? scene.integrator().type : options.integrator;
-    if (integrator != "path" && integrator != "pssmlt" && integrator != "gdpt")
+    if (integrator != "path" && integrator != "pssmlt" && integrator != "gdpt" &&
+        integrator != "gdmlt")
         throw InputError("integrator '" + integrator +
-                         "' is not available yet (available: path, pssmlt, gdpt)");
+                         "' is not available (available: path, pssmlt, gdpt, gdmlt)");
     if (options.max_depth && (*options.max_depth == 0 || *options.max_depth < -1))
         throw InputError("--max-depth must be -1 or at least 1");
 
@@ -355,9 +446,10 @@ int run_render(const RenderOptions& options) {
     g_interrupted.store(false);
     std::signal(SIGINT, on_sigint);
     ProgressBar bar(isatty(STDERR_FILENO) != 0, options.quiet);
-    IntegratorResult result = integrator == "pssmlt" ? run_pssmlt(scene, options, bar)
-                              : integrator == "gdpt" ? run_gdpt(scene, options, bar)
-                                                     : run_path(scene, options, bar);
+    IntegratorResult result = integrator == "pssmlt"  ? run_pssmlt(scene, options, bar)
+                              : integrator == "gdpt"  ? run_gdpt(scene, options, bar)
+                              : integrator == "gdmlt" ? run_gdmlt(scene, options, bar)
+                                                      : run_path(scene, options, bar);
     std::signal(SIGINT, SIG_DFL);
     bar.finish(result.partial);
 
@@ -370,16 +462,18 @@ int run_render(const RenderOptions& options) {
     stats["config"] = config;
     stats["partial"] = result.partial;
     stats["scene"] = {{"features", features_json(scene.features())}, {"counts", scene.counts()}};
+    const bool gradient_domain = integrator == "gdpt" || integrator == "gdmlt";
     stats["machinery"] = {
         {"next_event_estimation", true},
-        {"shift_mappings", integrator == "gdpt"},
+        {"shift_mappings", gradient_domain},
         {"half_vector_or_replay_through_specular",
-         integrator == "gdpt" && scene.features().specular_chains_possible},
-        {"manifold_solver", integrator == "gdpt" && scene.features().specular_chains_possible},
+         gradient_domain && scene.features().specular_chains_possible},
+        {"manifold_solver", gradient_domain && scene.features().specular_chains_possible},
+        {"markov_chains", integrator == "pssmlt" || integrator == "gdmlt"},
         {"why",
          scene.features().specular_chains_possible
-             ? "specular chains are possible: the gdpt auto shift walks them (path and pssmlt "
-               "never need it)"
+             ? "specular chains are possible: the gdpt and gdmlt auto shift walks them (path "
+               "and pssmlt never need it)"
              : "no delta or glossy surface: no specular chain can occur, no half-vector or "
                "manifold code runs"}};
 
@@ -449,7 +543,7 @@ int main(int argc, char** argv) {
     render_cmd->add_option("-D,--define", render.defines,
                            "Scene parameter name=value (overrides <default>)");
     render_cmd->add_option("--integrator", render.integrator,
-                           "path | pssmlt (default: the scene's)");
+                           "path | pssmlt | gdpt | gdmlt (default: the scene's)");
     auto* spp_opt =
         render_cmd->add_option("--spp", render.spp, "Samples per pixel (default: the scene's)")
             ->check(CLI::PositiveNumber);
@@ -478,11 +572,11 @@ int main(int argc, char** argv) {
     render_cmd->add_option("--image-mutation-size", render.image_mutation_pixels,
                            "PSSMLT: small-step size S2 of the image coordinates, in pixels");
     render_cmd->add_option("--chains", render.chains,
-                           "PSSMLT: number of Markov chains (0: automatic)");
+                           "PSSMLT/GDMLT: number of Markov chains (0: automatic)");
     render_cmd->add_option("--bootstrap", render.bootstrap,
-                           "PSSMLT: bootstrap samples estimating b (100000)");
+                           "PSSMLT/GDMLT: bootstrap samples estimating b (100000)");
     render_cmd->add_option("--mpp", render.mpp,
-                           "PSSMLT: mutations per pixel (default 64, or --spp)");
+                           "PSSMLT/GDMLT: mutations per pixel (64 / 16, or --spp)");
     render_cmd->add_option("--direct-samples", render.direct_samples,
                            "PSSMLT: render direct illumination separately with N path-traced spp");
     render_cmd->add_option("--reconstruct", render.reconstruct_method,
@@ -490,6 +584,13 @@ int main(int argc, char** argv) {
     render_cmd->add_option("--alpha", render.alpha, "Gradient domain: weight of the primal (0.2)");
     render_cmd->add_option("--shift", render.shift,
                            "Gradient domain: auto | reconnect | halfvector | replay");
+    render_cmd->add_option("--primal-weight", render.primal_weight,
+                           "GDMLT: weight w of the primal in the target sum|D| + w Y(C) (0.25)");
+    render_cmd->add_option("--very-direct-samples", render.very_direct_samples,
+                           "GDMLT: spp of the pass for emitters seen directly (64)");
+    render_cmd->add_option("--bootstrap-error", render.bootstrap_error,
+                           "GDMLT: grow the bootstrap until b's relative standard error is "
+                           "below this (0.01)");
 
     std::string info_scene;
     std::vector<std::string> info_defines;

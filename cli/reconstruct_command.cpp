@@ -8,6 +8,7 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -23,10 +24,10 @@ namespace {
 struct ReconstructOptions {
     std::string input;
     std::string output;
-    std::string method = "l1";
-    double alpha = 0.2;
-    int iterations = 0;      // 0 = the method's default
-    double tolerance = 0.0;  // 0 = the method's default
+    std::string method;           // empty: the render's (EXR header), else l1
+    std::optional<double> alpha;  // unset: the render's, else 0.2
+    int iterations = 0;           // 0 = the method's default
+    double tolerance = 0.0;       // 0 = the method's default
     int threads = 0;
     float exposure = 0.f;
     bool quiet = false;
@@ -70,6 +71,7 @@ GradientBuffers read_buffers(const std::string& path, ExrAttributes& attributes)
     if (dy) b.dy = rgb_of(*dy, path);
     if (const ExrLayer* v = find_layer(layers, "primal_variance")) b.primal_variance = v->image;
     if (const ExrLayer* n = find_layer(layers, "sample_count")) b.sample_count = n->image;
+    if (const ExrLayer* v = find_layer(layers, "very_direct")) b.very_direct = rgb_of(*v, path);
     return b;
 }
 
@@ -79,9 +81,20 @@ std::string default_output(const std::string& input) {
     return p.string();
 }
 
-int run_reconstruct(const ReconstructOptions& o) {
-    const std::optional<reconstruct::Method> method = reconstruct::parse_method(o.method);
-    if (!method) throw InputError("--method must be l1, l2 or cv, got '" + o.method + "'");
+/// The reconstruction method and alpha the render used (its "gdmlt/config" header), so that
+/// `gdmlt reconstruct raw.exr` without flags reproduces the render's final image.
+void defaults_from_header(const ExrAttributes& attributes, ReconstructOptions& o) {
+    const auto config = attributes.find("gdmlt/config");
+    if (config == attributes.end()) return;
+    const nlohmann::json j = nlohmann::json::parse(config->second, nullptr, false);
+    if (!j.is_object()) return;
+    if (o.method.empty() && j.contains("reconstruct") && j["reconstruct"].is_string())
+        o.method = j["reconstruct"].get<std::string>();
+    if (!o.alpha && j.contains("alpha") && j["alpha"].is_number())
+        o.alpha = j["alpha"].get<double>();
+}
+
+int run_reconstruct(ReconstructOptions o) {
     std::unique_ptr<tbb::global_control> limit;
     if (o.threads > 0)
         limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
@@ -89,16 +102,15 @@ int run_reconstruct(const ReconstructOptions& o) {
 
     ExrAttributes attributes;
     const GradientBuffers buffers = read_buffers(o.input, attributes);
-    reconstruct::ReconstructInput input;
-    try {
-        input = reconstruct::make_reconstruct_input(buffers);
-    } catch (const std::invalid_argument& e) {
-        throw InputError(o.input + ": " + e.what());
-    }
+    defaults_from_header(attributes, o);
+    if (o.method.empty()) o.method = "l1";
+    const std::optional<reconstruct::Method> method = reconstruct::parse_method(o.method);
+    if (!method) throw InputError("--method must be l1, l2 or cv, got '" + o.method + "'");
+    if (!o.alpha) o.alpha = 0.2;
 
     reconstruct::ReconstructConfig config;
     config.method = *method;
-    config.alpha = o.alpha;
+    config.alpha = *o.alpha;
     if (o.iterations > 0) {
         switch (*method) {
             case reconstruct::Method::l2:
@@ -116,12 +128,17 @@ int run_reconstruct(const ReconstructOptions& o) {
         config.cg_tolerance = o.tolerance;
         config.irls_cg_tolerance = o.tolerance;
     }
-    const reconstruct::ReconstructResult result = reconstruct::reconstruct(input, config);
+    reconstruct::ReconstructResult result;
+    try {
+        result = reconstruct::reconstruct_buffers(buffers, config);
+    } catch (const std::invalid_argument& e) {
+        throw InputError(o.input + ": " + e.what());
+    }
     const reconstruct::ReconstructStats& s = result.stats;
 
     const std::string output = o.output.empty() ? default_output(o.input) : o.output;
     attributes["gdmlt.reconstruct.method"] = o.method;
-    attributes["gdmlt.reconstruct.alpha"] = std::to_string(o.alpha);
+    attributes["gdmlt.reconstruct.alpha"] = std::to_string(*o.alpha);
     attributes["gdmlt.reconstruct.iterations"] = std::to_string(s.iterations);
     attributes["gdmlt.reconstruct.cg_iterations"] = std::to_string(s.cg_iterations);
     attributes["gdmlt.reconstruct.relative_residual"] = std::to_string(s.final_relative_residual);
@@ -156,9 +173,10 @@ void add_reconstruct_command(CLI::App& app, int& exit_code) {
     cmd->add_option("input", options->input, "Raw EXR with layers primal, dx, dy")->required();
     cmd->add_option("-o,--output", options->output,
                     "Output EXR (default: <input>_final.exr; a PNG preview is written beside it)");
-    cmd->add_option("--method", options->method, "l1 (default), l2 or cv")
+    cmd->add_option("--method", options->method, "l1, l2 or cv (default: the render's, else l1)")
         ->check(CLI::IsMember({"l1", "l2", "cv"}));
-    cmd->add_option("--alpha", options->alpha, "Screening weight of the primal (default 0.2)")
+    cmd->add_option("--alpha", options->alpha,
+                    "Screening weight of the primal (default: the render's, else 0.2)")
         ->check(CLI::NonNegativeNumber);
     cmd->add_option("--iterations", options->iterations,
                     "l2: max CG iterations, l1: IRLS iterations, cv: iterations")

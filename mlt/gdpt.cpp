@@ -4,6 +4,7 @@
 #include <tbb/enumerable_thread_specific.h>
 
 #include <chrono>
+#include <stdexcept>
 
 #include "core/render/pixel_passes.h"
 
@@ -15,90 +16,42 @@ double seconds_since(Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-/// Per-pixel sums: primal, and the difference estimates of the samples based in this pixel
-/// towards each neighbour. Combined into the lattice differences only at the end, so that no
-/// two tiles ever write the same memory.
+/// Per-pixel sums of the samples based in this pixel. The per-link difference sums live in one
+/// flat array indexed like the NeighbourSet's links, so every pixel writes only its own memory
+/// and the edges are combined from both ends only at the end.
 struct PixelSums {
-    std::array<double, 3> primal{};
-    std::array<std::array<double, 3>, 4> difference{};
+    RgbD primal = RgbD::Zero();
+    RgbD very_direct = RgbD::Zero();
     std::uint32_t samples = 0;
 };
 
-void add(std::array<double, 3>& sum, const Rgb& v) {
-    for (int c = 0; c < 3; ++c) sum[static_cast<std::size_t>(c)] += static_cast<double>(v[c]);
-}
-
 }  // namespace
-
-GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
-                                SampleStream& stream, const GdptSettings& settings,
-                                const std::array<bool, 4>& neighbour_inside, PathCounters& counters,
-                                manifold::ShiftCounters& shift_counters) {
-    PathSamplerSettings path = settings.path;
-    if (path.max_depth < 0) path.max_depth = kUnboundedDepthCap;
-    const Path base = sample_camera_path(scene, film_position, stream, path, counters);
-    const std::vector<manifold::Contribution> base_terms = manifold::path_contributions(
-        scene, base, {}, static_cast<int>(base.vertices.size()), path.hide_emitters);
-
-    GradientSample out;
-    for (const manifold::Contribution& c : base_terms) {
-        // Primal: the path tracer's estimator, MIS between BSDF sampling and NEE.
-        if (c.pdf > 0.0)
-            out.primal +=
-                c.f * static_cast<float>(c.pdf / (c.pdf * c.pdf + c.pdf_other * c.pdf_other));
-    }
-    for (std::size_t i = 0; i < 4; ++i) {
-        if (!neighbour_inside[i]) continue;
-        out.used[i] = true;
-        const manifold::ShiftResult shifted =
-            manifold::shift_path(scene, base, kNeighbourOffsets[i], settings.shift, shift_counters);
-        const std::vector<manifold::Contribution> offset_terms =
-            manifold::path_contributions(scene, shifted.offset, shifted.log_jacobian,
-                                         shifted.valid_vertices, path.hide_emitters);
-        // Terms of both paths are listed in the same order (vertex, then hit before NEE);
-        // pair them by (kind, vertex).
-        std::size_t o = 0;
-        for (const manifold::Contribution& c : base_terms) {
-            while (o < offset_terms.size() &&
-                   (offset_terms[o].vertex < c.vertex ||
-                    (offset_terms[o].vertex == c.vertex && offset_terms[o].kind < c.kind)))
-                ++o;
-            const bool matched = o < offset_terms.size() && offset_terms[o].vertex == c.vertex &&
-                                 offset_terms[o].kind == c.kind;
-            if (!(c.pdf > 0.0)) continue;
-            // Both directions of the shift are strategies for the same pair of paths, and so
-            // are BSDF sampling and NEE: the power heuristic over all four (Kettunen et al.
-            // 2015, sec. 4.2) weights this one. The offset's pdfs are converted to the base's
-            // measure by the Jacobian.
-            double a2 = c.pdf * c.pdf, b2 = c.pdf_other * c.pdf_other, shifted2 = 0.0;
-            Rgb f_offset = Rgb::Zero();
-            if (matched) {
-                const manifold::Contribution& t = offset_terms[o];
-                const double jacobian = std::exp(t.log_jacobian);
-                if (std::isfinite(jacobian)) {
-                    shifted2 = (t.pdf * t.pdf + t.pdf_other * t.pdf_other) * jacobian * jacobian;
-                    f_offset = t.f * static_cast<float>(jacobian);
-                }
-            }
-            const double weight_over_pdf = c.pdf / (a2 + b2 + shifted2);
-            out.difference[i] += (f_offset - c.f) * static_cast<float>(weight_over_pdf);
-        }
-    }
-    return out;
-}
 
 GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
                        const std::atomic<bool>* cancel,
                        const std::function<void(double, double)>& progress) {
+    const Film& film = scene.camera().film();
+    return render_gdpt(scene, settings, NeighbourSet::lattice(film.crop_width, film.crop_height),
+                       cancel, progress);
+}
+
+GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
+                       const NeighbourSet& neighbours, const std::atomic<bool>* cancel,
+                       const std::function<void(double, double)>& progress) {
     const Clock::time_point start = Clock::now();
     const Film& film = scene.camera().film();
     const int width = film.crop_width, height = film.crop_height;
+    if (neighbours.width() != width || neighbours.height() != height)
+        throw std::invalid_argument("render_gdpt: the neighbour set is not the crop window's size");
     const bool timed = settings.time_budget_s > 0.0;
 
     std::vector<PixelSums> sums(static_cast<std::size_t>(width) * height);
+    std::vector<RgbD> link_sums(neighbours.link_count(), RgbD::Zero());
     tbb::enumerable_thread_specific<PathCounters> counters;
     tbb::enumerable_thread_specific<manifold::ShiftCounters> shift_counters;
     tbb::enumerable_thread_specific<std::uint64_t> dropped(0);
+    tbb::enumerable_thread_specific<std::vector<Rgb>> scratch(
+        std::vector<Rgb>(neighbours.max_links(), Rgb::Zero()));
 
     GdptOutput out;
     PixelPassSettings passes;
@@ -109,20 +62,26 @@ GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
     const PixelPassResult done = run_pixel_passes(
         film, passes, cancel,
         [&](int x, int y, const Vec2f& film_position, IndependentStream& stream) {
-            PixelSums& pixel = sums[static_cast<std::size_t>(y) * width + x];
-            const std::array<bool, 4> inside = {x + 1 < width, x > 0, y + 1 < height, y > 0};
-            const GradientSample g =
-                sample_gradients(scene, film_position, stream, settings, inside, counters.local(),
-                                 shift_counters.local());
-            ++pixel.samples;
-            bool finite = is_finite(g.primal);
-            for (const Rgb& d : g.difference) finite = finite && is_finite(d);
+            const std::size_t pixel = static_cast<std::size_t>(y) * width + x;
+            PixelSums& sum = sums[pixel];
+            const std::span<const NeighbourLink> links = neighbours.links(pixel);
+            std::vector<Rgb>& differences = scratch.local();
+            const GradientSample g = sample_gradients(
+                scene, film_position, stream, settings.path, settings.shift, links,
+                {differences.data(), links.size()}, counters.local(), shift_counters.local());
+            ++sum.samples;
+            bool finite = is_finite(g.primal) && is_finite(g.very_direct);
+            for (std::size_t k = 0; k < links.size(); ++k)
+                finite = finite && is_finite(differences[k]);
             if (!finite) {
                 ++dropped.local();
                 return;
             }
-            add(pixel.primal, g.primal);
-            for (std::size_t i = 0; i < 4; ++i) add(pixel.difference[i], g.difference[i]);
+            sum.primal += g.primal.cast<double>();
+            sum.very_direct += g.very_direct.cast<double>();
+            const std::size_t first = neighbours.first_link(pixel);
+            for (std::size_t k = 0; k < links.size(); ++k)
+                link_sums[first + k] += differences[k].cast<double>();
         },
         [&](int spp_completed) {
             if (progress)
@@ -131,35 +90,33 @@ GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
                          seconds_since(start));
         });
 
-    // Lattice differences: dx(x, y) estimates I(x+1, y) - I(x, y) from the +x shifts of
-    // pixel (x, y) and the -x shifts of pixel (x+1, y), each an estimator of its own sign.
     GradientBuffers& b = out.buffers;
     b.primal = Image(width, height, 3);
-    b.dx = Image(width, height, 3);
-    b.dy = Image(width, height, 3);
+    b.very_direct = Image(width, height, 3);
     b.sample_count = Image(width, height, 1);
-    auto at = [&](int x, int y) -> const PixelSums& {
-        return sums[static_cast<std::size_t>(y) * width + x];
-    };
     for (int y = 0; y < height; ++y)
         for (int x = 0; x < width; ++x) {
-            const PixelSums& p = at(x, y);
+            const PixelSums& p = sums[static_cast<std::size_t>(y) * width + x];
             b.sample_count(x, y) = static_cast<float>(p.samples);
             if (p.samples == 0) continue;
-            const double inv = 1.0 / p.samples;
             for (int c = 0; c < 3; ++c) {
-                const auto cc = static_cast<std::size_t>(c);
-                b.primal(x, y, c) = static_cast<float>(p.primal[cc] * inv);
-                if (x + 1 < width && at(x + 1, y).samples > 0)
-                    b.dx(x, y, c) =
-                        static_cast<float>(p.difference[0][cc] * inv -
-                                           at(x + 1, y).difference[1][cc] / at(x + 1, y).samples);
-                if (y + 1 < height && at(x, y + 1).samples > 0)
-                    b.dy(x, y, c) =
-                        static_cast<float>(p.difference[2][cc] * inv -
-                                           at(x, y + 1).difference[3][cc] / at(x, y + 1).samples);
+                b.primal(x, y, c) = static_cast<float>(p.primal[c] / p.samples);
+                b.very_direct(x, y, c) = static_cast<float>(p.very_direct[c] / p.samples);
             }
         }
+    // Edge (a, b): I(b) - I(a) from the a->b shifts of pixel a and the b->a shifts of pixel b,
+    // each an estimator of its own sign.
+    std::vector<RgbD> edge_differences(neighbours.edges().size(), RgbD::Zero());
+    for (std::size_t e = 0; e < edge_differences.size(); ++e) {
+        const GradientEdge& edge = neighbours.edges()[e];
+        const auto [at_from, at_to] = neighbours.edge_links(e);
+        const std::uint32_t n_from = sums[static_cast<std::size_t>(edge.from)].samples;
+        const std::uint32_t n_to = sums[static_cast<std::size_t>(edge.to)].samples;
+        if (n_from == 0 || n_to == 0) continue;
+        edge_differences[e] = link_sums[at_from] / n_from - link_sums[at_to] / n_to;
+    }
+    store_edge_differences(neighbours, edge_differences, b);
+
     GdptStats& s = out.stats;
     for (const PathCounters& c : counters) s.counters += c;
     for (const manifold::ShiftCounters& c : shift_counters) s.shifts += c;

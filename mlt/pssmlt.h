@@ -10,6 +10,7 @@
 #include "core/image/image.h"
 #include "core/path/path_sampler.h"
 #include "core/scene/scene.h"
+#include "mlt/chain_runner.h"
 #include "mlt/mutation.h"
 
 namespace gdmlt::mlt {
@@ -33,29 +34,9 @@ struct PssmltSettings {
     int direct_samples = -1;
 };
 
-struct PssmltStats {
-    // Normalisation b = E[luminance of a path's contribution] (the image's mean luminance).
-    double b = 0.0;
-    double b_standard_error = 0.0;
-    std::uint64_t bootstrap_samples = 0;
-    std::uint64_t bootstrap_nonzero = 0;
-    // An independent path-traced estimate of the same quantity, as a check of b.
-    double b_independent = 0.0;
-    double b_independent_standard_error = 0.0;
-
-    int chains = 0;
-    std::uint64_t mutations = 0;
-    std::uint64_t large_proposed = 0, large_accepted = 0;
-    std::uint64_t small_proposed = 0, small_accepted = 0;
-    std::uint64_t longest_rejection_streak = 0;     // over all chains
-    double median_longest_rejection_streak = 0.0;   // median over chains of each one's longest
-    double chain_brightness_mean = 0.0;             // mean over chains of each chain's mean I
-    double chain_brightness_relative_spread = 0.0;  // their standard deviation / mean
-    std::uint64_t nonfinite_dropped = 0;
-    std::uint64_t replay_mismatches = 0;  // chain start != bootstrap value (non-determinism)
-    PathCounters counters;
-    double bootstrap_s = 0.0, chains_s = 0.0, direct_s = 0.0, total_s = 0.0;
-    bool interrupted = false;
+/// The chain runner's statistics (b, acceptance, streaks, ...) plus the separate direct pass.
+struct PssmltStats : ChainStats {
+    double direct_s = 0.0;
 };
 
 struct PssmltOutput {
@@ -72,7 +53,8 @@ PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator);
 /// Throws InputError (at `loc`) when a knob is out of range.
 void validate_pssmlt_settings(const PssmltSettings& settings, const FileLoc& loc);
 
-/// Renders with PSSMLT. `cancel` is polled between rounds; `progress` gets the fraction done.
+/// Renders with PSSMLT on the chain runner. `cancel` is polled every few hundred mutations;
+/// `progress` gets the fraction done.
 PssmltOutput render_pssmlt(
     const Scene& scene, const PssmltSettings& settings, const std::atomic<bool>* cancel = nullptr,
     const std::function<void(double fraction, double elapsed_s)>& progress = {});

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "reconstruct/reconstruct.h"
 
+#include <stdexcept>
+
 namespace gdmlt::reconstruct {
 
 ReconstructResult reconstruct(const ReconstructInput& input, const ReconstructConfig& config) {
@@ -13,6 +15,19 @@ ReconstructResult reconstruct(const ReconstructInput& input, const ReconstructCo
             return solve_cv(input, config);
     }
     return solve_l1(input, config);
+}
+
+ReconstructResult reconstruct_buffers(const GradientBuffers& buffers,
+                                      const ReconstructConfig& config) {
+    ReconstructResult result = reconstruct(make_reconstruct_input(buffers), config);
+    const Image& direct = buffers.very_direct;
+    if (direct.pixels.empty()) return result;
+    Image& image = result.image;
+    if (direct.width != image.width || direct.height != image.height || direct.channels != 3 ||
+        image.channels != 3)
+        throw std::invalid_argument("very_direct layer: size differs from the primal's");
+    for (std::size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] += direct.pixels[i];
+    return result;
 }
 
 }  // namespace gdmlt::reconstruct

@@ -50,6 +50,10 @@ struct GradientBuffers {
     /// reconstruction models Var(primal) as proportional to 1 / count.
     Image sample_count;
 
+    /// Optional "very direct" light (emitters seen directly from the camera), RGB: never part of
+    /// the gradients, added to the reconstruction's result (G-PT's BUFFER_VERY_DIRECT).
+    Image very_direct;
+
     /// Optional feature layers by name ("albedo", "normal", "depth"), same size as primal.
     std::map<std::string, Image> features;
 };

@@ -53,13 +53,23 @@ Chi2Result chi2_sphere_test(const std::function<std::optional<Vec3f>(Pcg32&)>& s
     }
     expected[bin_count] = std::max(0.0, 1.0 - integral) * settings.samples;
 
+    Chi2Result result = chi2_histogram_test(observed, expected);
+    result.pdf_integral = integral;
+    result.summary += "; pdf integral = " + std::to_string(integral) +
+                      ", failed samples = " + std::to_string(observed[bin_count]) + " (expected " +
+                      std::to_string(expected[bin_count]) + ")";
+    return result;
+}
+
+Chi2Result chi2_histogram_test(const std::vector<double>& observed,
+                               const std::vector<double>& expected) {
+    const std::size_t bin_count = observed.size();
     // Pool small bins (sorted by expected count) until each pooled group expects >= 5.
-    std::vector<std::size_t> order(bin_count + 1);
+    std::vector<std::size_t> order(bin_count);
     for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
     std::sort(order.begin(), order.end(),
               [&](std::size_t a, std::size_t b) { return expected[a] < expected[b]; });
     Chi2Result result;
-    result.pdf_integral = integral;
     double pooled_observed = 0.0, pooled_expected = 0.0;
     int cells = 0;
     double statistic = 0.0;
@@ -100,9 +110,7 @@ Chi2Result chi2_sphere_test(const std::function<std::optional<Vec3f>(Pcg32&)>& s
     }
     std::ostringstream summary;
     summary << "chi2 = " << statistic << ", dof = " << result.degrees_of_freedom
-            << ", p = " << result.p_value << ", pdf integral = " << integral
-            << ", failed samples = " << observed[bin_count] << " (expected " << expected[bin_count]
-            << ") " << notes.str();
+            << ", p = " << result.p_value << " " << notes.str();
     result.summary = summary.str();
     return result;
 }

@@ -8,6 +8,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "core/math/types.h"
 #include "core/sampling/rng.h"
@@ -35,6 +36,12 @@ struct Chi2Settings {
 Chi2Result chi2_sphere_test(const std::function<std::optional<Vec3f>(Pcg32&)>& sample,
                             const std::function<double(const Vec3f&)>& pdf,
                             const Chi2Settings& settings = {});
+
+/// Pearson's chi-square of observed against expected counts per bin (same length). Bins
+/// expecting fewer than 5 are pooled, smallest first; a count in a bin expecting none fails
+/// outright (statistic infinite, p = 0).
+Chi2Result chi2_histogram_test(const std::vector<double>& observed,
+                               const std::vector<double>& expected);
 
 /// Significance level for one of `test_count` tests run together: the Sidak correction of
 /// alpha = 0.01, so the whole suite has a 1% chance of a false alarm.

@@ -46,13 +46,14 @@ MeanEstimate gdpt_pixel_difference(const Scene& scene, const mlt::GdptSettings& 
             IndependentStream stream(derive_stream(seed, static_cast<std::uint64_t>(side),
                                                    static_cast<std::uint64_t>(s)));
             const Vec2f jitter = stream.next_2d();
-            const std::array<bool, 4> inside = {side == 0, side == 1, false, false};
-            const mlt::GradientSample g =
-                mlt::sample_gradients(scene,
-                                      Vec2f(static_cast<float>(xi + side) + jitter.x(),
-                                            static_cast<float>(y) + jitter.y()),
-                                      stream, settings, inside, counters, shifts);
-            d += side == 0 ? luminance(g.difference[0]) : -luminance(g.difference[1]);
+            const NeighbourLink link{Vec2i(side == 0 ? 1 : -1, 0), 0, side == 0};
+            Rgb difference = Rgb::Zero();
+            mlt::sample_gradients(scene,
+                                  Vec2f(static_cast<float>(xi + side) + jitter.x(),
+                                        static_cast<float>(y) + jitter.y()),
+                                  stream, settings.path, settings.shift, {&link, 1},
+                                  {&difference, 1}, counters, shifts);
+            d += side == 0 ? luminance(difference) : -luminance(difference);
         }
         acc.add(d);
     }

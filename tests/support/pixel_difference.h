@@ -6,6 +6,7 @@
 #include "core/scene/scene.h"
 #include "manifold/shift.h"
 #include "mlt/gdpt.h"
+#include "mlt/gradient_sample.h"
 
 namespace gdmlt::test {
 

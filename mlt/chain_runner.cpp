@@ -1,0 +1,376 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "mlt/chain_runner.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+#include <utility>
+
+#include "core/sampling/distribution_1d.h"
+#include "mlt/primary_sample_vector.h"
+
+namespace gdmlt::mlt {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// Stream identifiers: each purpose gets its own family of PCG streams, so bootstrap samples,
+// the independent check and the chains never share random numbers.
+constexpr std::uint64_t kBootstrapStreams = 0xB0075;
+constexpr std::uint64_t kIndependentStreams = 0x1D3B;
+constexpr std::uint64_t kChainStreams = 0xC4A1;
+
+/// Ctrl-C is polled this often inside a chain's share of a round.
+constexpr std::uint64_t kCancelPollInterval = 256;
+
+Pcg32 generator(std::uint64_t key) {
+    return Pcg32(key, mix_bits(key));
+}
+
+/// A splat waiting for the end of its round (float values: accumulation is in double, and a
+/// record is 16 bytes, so a round's queue stays small).
+struct QueuedSplat {
+    std::uint32_t slot;
+    float value[3];
+};
+
+struct Chain {
+    Chain(PrimarySampleVector psv_, Pcg32 control_, std::size_t start)
+        : psv(std::move(psv_)), control(control_), start_index(start) {}
+
+    PrimarySampleVector psv;
+    Pcg32 control;  // large-step choices and acceptance
+    ChainState current, proposal;
+    std::uint64_t streak = 0, longest_streak = 0;
+    double brightness_sum = 0.0;
+    std::uint64_t iterations = 0;
+    std::uint64_t large_proposed = 0, large_accepted = 0, small_proposed = 0, small_accepted = 0;
+    std::uint64_t nonfinite = 0;
+    ChainCounters counters;
+    std::size_t start_index = 0;  // the bootstrap sample it started from
+    std::vector<QueuedSplat> queue;
+    std::vector<std::uint32_t> visits;  // density slot of the state after each iteration
+};
+
+void evaluate_state(const ChainTarget& target, SampleStream& stream, ChainState& state,
+                    ChainCounters& counters) {
+    state.clear();
+    target.evaluate(stream, state, counters);
+    if (state.nonfinite || !std::isfinite(state.target) || !(state.target >= 0.0)) {
+        // Dropped and counted; a zero-target state is never splatted (pbrt-v4 once produced NaN
+        // here by dividing by a zero luminance).
+        state.clear();
+        state.nonfinite = true;
+        return;
+    }
+    if (state.target == 0.0) state.splats.clear();
+}
+
+/// An independent sample with the given generator, drawn exactly as a chain's first (large)
+/// step draws it, so that a chain can start from it by replaying the generator.
+double independent_target(const ChainTarget& target, const ChainRunnerSettings& settings,
+                          std::uint64_t key, ChainState& state, ChainCounters& counters) {
+    PrimarySampleVector psv(settings.mutation, generator(key), settings.image_width,
+                            settings.image_height);
+    psv.start_iteration(true);
+    evaluate_state(target, psv, state, counters);
+    return state.nonfinite ? -1.0 : state.target;
+}
+
+struct MeanEstimate {
+    double mean = 0.0, standard_error = 0.0;
+    std::uint64_t nonzero = 0;
+};
+
+MeanEstimate mean_of(const std::vector<double>& values) {
+    MeanEstimate m;
+    double sum = 0.0, sum2 = 0.0;
+    for (double v : values) {  // in index order: deterministic
+        sum += v;
+        sum2 += v * v;
+        if (v > 0.0) ++m.nonzero;
+    }
+    const auto n = static_cast<double>(values.size());
+    if (n == 0) return m;
+    m.mean = sum / n;
+    m.standard_error = n > 1 ? std::sqrt(std::max(0.0, sum2 / n - m.mean * m.mean) / (n - 1)) : 0.0;
+    return m;
+}
+
+/// Targets of independent samples [first, first + count) of stream family `family`, appended
+/// to `values` in index order; non-finite ones count as 0 and are counted.
+void append_independent_targets(const ChainTarget& target, const ChainRunnerSettings& settings,
+                                std::uint64_t family, std::size_t first, std::size_t count,
+                                std::vector<double>& values,
+                                tbb::enumerable_thread_specific<ChainCounters>& counters,
+                                std::uint64_t& nonfinite) {
+    const std::size_t base = values.size();
+    values.resize(base + count, 0.0);
+    tbb::enumerable_thread_specific<ChainState> states;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 256),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          ChainCounters& local = counters.local();
+                          ChainState& state = states.local();
+                          for (std::size_t i = r.begin(); i != r.end(); ++i)
+                              values[base + i] = independent_target(
+                                  target, settings, derive_stream(settings.seed, family, first + i),
+                                  state, local);
+                      });
+    for (std::size_t i = base; i < values.size(); ++i)
+        if (values[i] < 0.0) {
+            values[i] = 0.0;
+            ++nonfinite;
+        }
+}
+
+void queue_splats(Chain& chain, const ChainState& state, double weight) {
+    if (!(weight > 0.0)) return;
+    for (const Splat& s : state.splats) {
+        const Rgb v = s.value * static_cast<float>(weight);
+        chain.queue.push_back({s.slot, {v[0], v[1], v[2]}});
+    }
+}
+
+/// Advances one chain by up to `mutations` iterations, queueing its splats.
+void run_chain(Chain& chain, const ChainTarget& target, const ChainRunnerSettings& settings,
+               double b, std::uint64_t mutations, bool track_density,
+               const std::atomic<bool>* cancel) {
+    const double p_large = settings.mutation.p_large;
+    for (std::uint64_t m = 0; m < mutations; ++m) {
+        if (m % kCancelPollInterval == kCancelPollInterval - 1 && cancel &&
+            cancel->load(std::memory_order_relaxed))
+            return;
+        const bool large = chain.control.next_double() < p_large;
+        chain.psv.start_iteration(large);
+        evaluate_state(target, chain.psv, chain.proposal, chain.counters);
+        if (chain.proposal.nonfinite) ++chain.nonfinite;
+        const ChainState& proposal = chain.proposal;
+        const ChainState& current = chain.current;
+        // Symmetric proposals: a = min(1, f(y) / f(x)) (Metropolis-Hastings).
+        const double accept =
+            current.target > 0.0 ? std::min(1.0, proposal.target / current.target) : 1.0;
+
+        // Splat both states with expected-value weights (Veach 1997, sec. 11.5), optionally
+        // MIS-combined with the large steps as an independent estimator (Kelemen et al. 2002):
+        // proposal (a + [large]) g(y) / (f(y)/b + p_L), current (1 - a) g(x) / (f(x)/b + p_L).
+        if (settings.kelemen_weights) {
+            if (proposal.target > 0.0)
+                queue_splats(chain, proposal,
+                             (accept + (large ? 1.0 : 0.0)) / (proposal.target / b + p_large));
+            if (current.target > 0.0 && accept < 1.0)
+                queue_splats(chain, current, (1.0 - accept) / (current.target / b + p_large));
+        } else {
+            if (proposal.target > 0.0) queue_splats(chain, proposal, accept * b / proposal.target);
+            if (current.target > 0.0 && accept < 1.0)
+                queue_splats(chain, current, (1.0 - accept) * b / current.target);
+        }
+
+        (large ? chain.large_proposed : chain.small_proposed) += 1;
+        if (chain.control.next_double() < accept) {
+            chain.psv.accept();
+            std::swap(chain.current, chain.proposal);  // keeps both splat lists' capacity
+            (large ? chain.large_accepted : chain.small_accepted) += 1;
+            chain.streak = 0;
+        } else {
+            chain.psv.reject();
+            chain.longest_streak = std::max(chain.longest_streak, ++chain.streak);
+        }
+        chain.brightness_sum += chain.current.target;
+        if (track_density && chain.current.density_slot >= 0)
+            chain.visits.push_back(static_cast<std::uint32_t>(chain.current.density_slot));
+        ++chain.iterations;
+    }
+}
+
+}  // namespace
+
+ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSettings& settings,
+                             const std::atomic<bool>* cancel,
+                             const std::function<void(double, double)>& progress) {
+    const Clock::time_point start = Clock::now();
+    auto cancelled = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
+    const bool timed = settings.time_budget_s > 0.0;
+    const int chain_count = std::max(settings.chains, 1);
+
+    ChainRunnerOutput out;
+    ChainStats& stats = out.stats;
+    stats.chains = chain_count;
+    std::vector<RgbD> accumulated(target.slot_count(), RgbD::Zero());
+    std::vector<std::uint64_t> visits(target.density_slot_count(), 0);
+
+    // 1. Bootstrap (Kelemen et al. 2002, sec. 5): b from independent samples; chain start states
+    //    resampled proportionally to f, which removes start-up bias.
+    tbb::enumerable_thread_specific<ChainCounters> counters;
+    const std::size_t initial =
+        std::max<std::size_t>(static_cast<std::size_t>(settings.bootstrap_samples),
+                              10 * static_cast<std::size_t>(chain_count));
+    std::vector<double> bootstrap;
+    append_independent_targets(target, settings, kBootstrapStreams, 0, initial, bootstrap, counters,
+                               stats.nonfinite_dropped);
+    MeanEstimate b_estimate = mean_of(bootstrap);
+    // Every pixel's brightness is b's: grow the bootstrap until b is as precise as asked.
+    while (settings.bootstrap_relative_error > 0.0 &&
+           b_estimate.standard_error > settings.bootstrap_relative_error * b_estimate.mean &&
+           bootstrap.size() < 16 * initial && !cancelled() &&
+           !(timed && seconds_since(start) > 0.25 * settings.time_budget_s)) {
+        append_independent_targets(target, settings, kBootstrapStreams, bootstrap.size(), initial,
+                                   bootstrap, counters, stats.nonfinite_dropped);
+        b_estimate = mean_of(bootstrap);
+    }
+    stats.b = b_estimate.mean;
+    stats.b_standard_error = b_estimate.standard_error;
+    stats.bootstrap_samples = bootstrap.size();
+    stats.bootstrap_nonzero = b_estimate.nonzero;
+    {
+        std::vector<double> check;
+        std::uint64_t ignored = 0;  // the check's failures are not the render's
+        append_independent_targets(target, settings, kIndependentStreams, 0,
+                                   std::max<std::size_t>(bootstrap.size() / 4, 1), check, counters,
+                                   ignored);
+        const MeanEstimate independent = mean_of(check);
+        stats.b_independent = independent.mean;
+        stats.b_independent_standard_error = independent.standard_error;
+    }
+    stats.bootstrap_s = seconds_since(start);
+    auto finish = [&] {
+        for (const ChainCounters& c : counters) {
+            stats.counters += c.paths;
+            stats.shifts += c.shifts;
+        }
+        stats.interrupted = cancelled();
+        stats.total_s = seconds_since(start);
+    };
+    if (!(stats.b > 0.0)) {
+        // Every bootstrap sample had a zero target: nothing for the chains to find.
+        out.estimate = std::move(accumulated);
+        out.density.assign(visits.size(), 0.0);
+        finish();
+        return out;
+    }
+
+    std::vector<float> weights(bootstrap.begin(), bootstrap.end());
+    const Distribution1D start_states(weights);
+    std::vector<Chain> chains;
+    chains.reserve(static_cast<std::size_t>(chain_count));
+    for (int c = 0; c < chain_count; ++c) {
+        Pcg32 control =
+            generator(derive_stream(settings.seed, kChainStreams, static_cast<std::uint64_t>(c)));
+        const std::size_t index = start_states.sample(control.next_float());
+        const std::uint64_t key = derive_stream(settings.seed, kBootstrapStreams, index);
+        chains.emplace_back(PrimarySampleVector(settings.mutation, generator(key),
+                                                settings.image_width, settings.image_height),
+                            control, index);
+    }
+    // Replay each start state (parallel: each is one evaluation).
+    tbb::parallel_for(0, chain_count, [&](int c) {
+        Chain& chain = chains[static_cast<std::size_t>(c)];
+        chain.psv.start_iteration(true);
+        evaluate_state(target, chain.psv, chain.current, chain.counters);
+        chain.psv.accept();
+    });
+    for (const Chain& chain : chains) {
+        // Mitsuba's guard: a start state that does not reproduce its bootstrap value means the
+        // target is not a deterministic function of its primary samples.
+        const double recorded = bootstrap[chain.start_index];
+        if (std::abs(chain.current.target - recorded) > 1e-6 * recorded) ++stats.replay_mismatches;
+    }
+
+    // 2. Chains, in rounds: a round advances every chain by the same number of mutations, so
+    //    time budgets act between rounds. With a mutation budget the rounds are fixed and the
+    //    queues are merged in chain order: the result is fixed, bit for bit.
+    const Clock::time_point chains_start = Clock::now();
+    const std::uint64_t per_chain_budget = timed && settings.mutations == 0
+                                               ? std::numeric_limits<std::uint64_t>::max() / 4
+                                               : (std::max<std::uint64_t>(settings.mutations, 1) +
+                                                  static_cast<std::uint64_t>(chain_count) - 1) /
+                                                     static_cast<std::uint64_t>(chain_count);
+    const bool track_density = !visits.empty();
+    std::uint64_t per_chain_done = 0;
+    std::uint64_t round_size = timed ? 64 : std::min<std::uint64_t>(per_chain_budget, 1024);
+    while (per_chain_done < per_chain_budget && !cancelled()) {
+        if (timed && settings.time_budget_s - seconds_since(start) <= 0.0) break;
+        const std::uint64_t this_round = std::min(round_size, per_chain_budget - per_chain_done);
+        const Clock::time_point round_start = Clock::now();
+        tbb::parallel_for(0, chain_count, [&](int c) {
+            run_chain(chains[static_cast<std::size_t>(c)], target, settings, stats.b, this_round,
+                      track_density, cancel);
+        });
+        for (Chain& chain : chains) {
+            for (const QueuedSplat& q : chain.queue)
+                for (int k = 0; k < 3; ++k)
+                    accumulated[q.slot][k] += static_cast<double>(q.value[k]);
+            for (std::uint32_t v : chain.visits) ++visits[v];
+            chain.queue.clear();
+            chain.visits.clear();
+        }
+        per_chain_done += this_round;
+        if (timed) {
+            // Rounds of about half a second, never past the budget.
+            const double per_mutation =
+                seconds_since(round_start) / static_cast<double>(this_round);
+            const double remaining = settings.time_budget_s - seconds_since(start);
+            const double goal = std::min(0.5, std::max(remaining, 0.0));
+            round_size = std::clamp<std::uint64_t>(
+                static_cast<std::uint64_t>(goal / std::max(per_mutation, 1e-9)), 1, 1 << 16);
+        }
+        if (progress) {
+            const double fraction =
+                timed ? seconds_since(start) / settings.time_budget_s
+                      : static_cast<double>(per_chain_done) / static_cast<double>(per_chain_budget);
+            progress(std::min(fraction, 1.0), seconds_since(start));
+        }
+    }
+    stats.chains_s = seconds_since(chains_start);
+
+    // 3. Statistics, and the estimate: sum of splats / N.
+    std::vector<double> longest, brightness;
+    for (const Chain& c : chains) {
+        stats.mutations += c.iterations;
+        stats.large_proposed += c.large_proposed;
+        stats.large_accepted += c.large_accepted;
+        stats.small_proposed += c.small_proposed;
+        stats.small_accepted += c.small_accepted;
+        stats.nonfinite_dropped += c.nonfinite;
+        stats.longest_rejection_streak = std::max(stats.longest_rejection_streak, c.longest_streak);
+        stats.counters += c.counters.paths;
+        stats.shifts += c.counters.shifts;
+        longest.push_back(static_cast<double>(c.longest_streak));
+        if (c.iterations > 0)
+            brightness.push_back(c.brightness_sum / static_cast<double>(c.iterations));
+    }
+    if (!longest.empty()) {
+        std::nth_element(longest.begin(),
+                         longest.begin() + static_cast<std::ptrdiff_t>(longest.size() / 2),
+                         longest.end());
+        stats.median_longest_rejection_streak = longest[longest.size() / 2];
+    }
+    if (!brightness.empty()) {
+        const MeanEstimate m = mean_of(brightness);
+        stats.chain_brightness_mean = m.mean;
+        const double sd = m.standard_error * std::sqrt(static_cast<double>(brightness.size()));
+        stats.chain_brightness_relative_spread = m.mean > 0.0 ? sd / m.mean : 0.0;
+    }
+    if (stats.mutations > 0) {
+        const double scale = 1.0 / static_cast<double>(stats.mutations);
+        for (RgbD& v : accumulated) v *= scale;
+    }
+    for (const Chain& c : chains) out.final_density_slots.push_back(c.current.density_slot);
+    out.estimate = std::move(accumulated);
+    out.density.assign(visits.size(), 0.0);
+    std::uint64_t total_visits = 0;
+    for (std::uint64_t v : visits) total_visits += v;
+    if (total_visits > 0)
+        for (std::size_t i = 0; i < visits.size(); ++i)
+            out.density[i] = static_cast<double>(visits[i]) / static_cast<double>(total_visits);
+    finish();
+    return out;
+}
+
+}  // namespace gdmlt::mlt

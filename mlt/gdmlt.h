@@ -1,0 +1,87 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+// Gradient-domain Metropolis light transport (Lehtinen, Karras, Laine, Aittala, Durand, Aila
+// 2013) in primary sample space, with the shifts of manifold/ (reconnection, half-vector copy,
+// replay, and the manifold shift through specular chains of Manzi et al. 2014).
+//
+// A chain state u is a base path through pixel i (its first two primary samples are the film
+// position) and its shifts to i's neighbours (a NeighbourSet, the lattice by default). Per
+// neighbour link k the state carries the MIS-weighted difference D_k(u) (mlt/gradient_sample.h)
+// and the chain's target is
+//     f*(u) = sum_k Y(|D_k(u)|) + w * Y(C(u))                                         (GDMLT eq. 9)
+// with C the base's primal contribution, |.| per colour channel, Y the luminance and w the
+// primal weight. f* > 0 wherever C or any D_k is non-zero, so the chain covers everything it
+// splats. Splats (chain runner, Kelemen weights with b* = E_u[f*]): C into the pixel's primal,
+// D_k into its edge (with the sign of the edge's orientation). The primal, the differences and
+// b* thus share one chain; the screened Poisson solve turns them into the image. Very direct
+// light (emitters seen from the camera) is never shifted: a short path-traced pass renders it
+// into its own layer, added after the solve.
+#include <atomic>
+#include <functional>
+
+#include "core/image/gradient_buffers.h"
+#include "core/image/neighbour_set.h"
+#include "core/scene/scene.h"
+#include "manifold/shift.h"
+#include "mlt/chain_runner.h"
+#include "mlt/mutation.h"
+
+namespace gdmlt::mlt {
+
+struct GdmltSettings {
+    MutationSettings mutation;
+    int chains = 0;  // 0: one per 16384 mutations, 16 .. 4096
+    int bootstrap_samples = 100000;
+    /// The bootstrap grows until b*'s standard error is below this fraction of b* (up to 16x
+    /// bootstrap_samples): the whole image's brightness is b*'s.
+    double bootstrap_relative_error = 0.01;
+    /// Proposals per pixel (each traces the base path and one offset per neighbour); an upper
+    /// bound when time_budget_s > 0.
+    double mutations_per_pixel = 16.0;
+    double time_budget_s = 0.0;
+    std::uint64_t seed = 0;
+    PathSamplerSettings path;  // max_depth -1 is capped at kUnboundedDepthCap
+    manifold::ShiftKind shift = manifold::ShiftKind::Auto;
+    /// w in f* = sum_k Y(|D_k|) + w Y(C).
+    double primal_weight = 0.25;
+    bool kelemen_weights = true;
+    /// Samples per pixel of the very direct pass (camera rays only, about 2% of a 16 s render
+    /// at 256^2; fewer leave visible anti-aliasing noise on the edges of lights).
+    int very_direct_samples = 64;
+};
+
+/// The chain runner's statistics plus GDMLT's own.
+struct GdmltStats : ChainStats {
+    double very_direct_s = 0.0;
+};
+
+struct GdmltOutput {
+    /// primal, dx, dy (+ extra edges for a non-lattice set), very_direct, sample_count (chain
+    /// states per pixel).
+    GradientBuffers buffers;
+    /// Chain states per pixel relative to a uniform sampler (1 = as many as uniform).
+    Image sample_density;
+    GdmltStats stats;
+};
+
+/// Renders with the lattice neighbours.
+GdmltOutput render_gdmlt(
+    const Scene& scene, const GdmltSettings& settings, const std::atomic<bool>* cancel = nullptr,
+    const std::function<void(double fraction, double elapsed_s)>& progress = {});
+
+/// Renders with any neighbour set over the crop window (its size must be the crop's).
+GdmltOutput render_gdmlt(
+    const Scene& scene, const GdmltSettings& settings, const NeighbourSet& neighbours,
+    const std::atomic<bool>* cancel = nullptr,
+    const std::function<void(double fraction, double elapsed_s)>& progress = {});
+
+/// Reads the knobs of a <integrator type="gdmlt"> element: the PSSMLT names (p_large,
+/// mutation_size_low/high, image_mutation_size, chains, bootstrap_samples, mutations_per_pixel,
+/// kelemen_style_weights) plus primal_weight, very_direct_samples, bootstrap_relative_error.
+/// Unknown properties throw InputError with the location.
+GdmltSettings gdmlt_settings_from_scene(const IntegratorSettings& integrator);
+
+/// Throws InputError (at `loc`) when a knob is out of range.
+void validate_gdmlt_settings(const GdmltSettings& settings, const FileLoc& loc);
+
+}  // namespace gdmlt::mlt
