@@ -585,7 +585,7 @@ int main(int argc, char** argv) {
     render_cmd->add_option("--shift", render.shift,
                            "Gradient domain: auto | reconnect | halfvector | replay");
     render_cmd->add_option("--primal-weight", render.primal_weight,
-                           "GDMLT: weight w of the primal in the target sum|D| + w Y(C) (0.25)");
+                           "GDMLT: weight w of the primal in the target sum|D| + w Y(C) (1)");
     render_cmd->add_option("--very-direct-samples", render.very_direct_samples,
                            "GDMLT: spp of the pass for emitters seen directly (64)");
     render_cmd->add_option("--bootstrap-error", render.bootstrap_error,

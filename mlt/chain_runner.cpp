@@ -214,12 +214,16 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
     std::vector<double> bootstrap;
     append_independent_targets(target, settings, kBootstrapStreams, 0, initial, bootstrap, counters,
                                stats.nonfinite_dropped);
+    const double batch_s = seconds_since(start);
     MeanEstimate b_estimate = mean_of(bootstrap);
-    // Every pixel's brightness is b's: grow the bootstrap until b is as precise as asked.
+    // Every pixel's brightness is b's: grow the bootstrap until b is as precise as asked. With
+    // a time budget, only while the next batch fits into the bootstrap's share of it: these
+    // samples are not splatted, and at short budgets the chains need the time more.
     while (settings.bootstrap_relative_error > 0.0 &&
            b_estimate.standard_error > settings.bootstrap_relative_error * b_estimate.mean &&
            bootstrap.size() < 16 * initial && !cancelled() &&
-           !(timed && seconds_since(start) > 0.25 * settings.time_budget_s)) {
+           !(timed && seconds_since(start) + batch_s >
+                          settings.bootstrap_time_fraction * settings.time_budget_s)) {
         append_independent_targets(target, settings, kBootstrapStreams, bootstrap.size(), initial,
                                    bootstrap, counters, stats.nonfinite_dropped);
         b_estimate = mean_of(bootstrap);

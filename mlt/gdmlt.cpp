@@ -140,7 +140,7 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
     runner.chains =
         settings.chains > 0
             ? settings.chains
-            : static_cast<int>(std::clamp<std::uint64_t>(runner.mutations / 16384, 16, 4096));
+            : static_cast<int>(std::clamp<std::uint64_t>(runner.mutations / 4096, 64, 4096));
     runner.bootstrap_samples = static_cast<std::uint64_t>(settings.bootstrap_samples);
     runner.bootstrap_relative_error = settings.bootstrap_relative_error;
     if (settings.time_budget_s > 0.0) {
