@@ -405,7 +405,6 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options, Pro
                       ExrLayer{"dx", {"R", "G", "B"}, out.buffers.dx},
                       ExrLayer{"dy", {"R", "G", "B"}, out.buffers.dy},
                       ExrLayer{"very_direct", {"R", "G", "B"}, out.buffers.very_direct},
-                      ExrLayer{"sample_count", {"Y"}, out.buffers.sample_count},
                       ExrLayer{"sample_density", {"Y"}, out.sample_density}};
     const mlt::GdmltStats& s = out.stats;
     r.partial = s.interrupted;

@@ -163,7 +163,9 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
     // 3. Buffers: each slot's integral over primary sample space times the pixel count (a pixel
     //    covers 1/P of the image plane).
     b.primal = Image(width, height, 3);
-    b.sample_count = Image(width, height, 1);
+    // No sample_count layer: reconstruction would read 1/count as the primal's variance, which
+    // holds for independent samples, not for a chain's correlated, 1/f*-weighted ones (the
+    // weighted control variates then gave a 2x too bright image on caustic_glass_light).
     out.sample_density = Image(width, height, 1);
     const std::size_t p_count = neighbours.pixel_count();
     for (std::size_t i = 0; i < p_count; ++i) {
@@ -171,8 +173,6 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
             b.primal.pixels[3 * i + static_cast<std::size_t>(c)] =
                 static_cast<float>(chains.estimate[i][c] * pixels);
         out.sample_density.pixels[i] = static_cast<float>(chains.density[i] * pixels);
-        b.sample_count.pixels[i] =
-            static_cast<float>(chains.density[i] * static_cast<double>(chains.stats.mutations));
     }
     std::vector<RgbD> edge_differences(neighbours.edges().size());
     for (std::size_t e = 0; e < edge_differences.size(); ++e)

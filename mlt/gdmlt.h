@@ -62,8 +62,7 @@ struct GdmltStats : ChainStats {
 };
 
 struct GdmltOutput {
-    /// primal, dx, dy (+ extra edges for a non-lattice set), very_direct, sample_count (chain
-    /// states per pixel).
+    /// primal, dx, dy (+ extra edges for a non-lattice set), very_direct.
     GradientBuffers buffers;
     /// Chain states per pixel relative to a uniform sampler (1 = as many as uniform).
     Image sample_density;
