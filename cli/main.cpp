@@ -64,6 +64,7 @@ struct RenderOptions {
     // Gradient-domain knobs.
     std::string reconstruct_method;
     std::optional<double> alpha;
+    std::optional<int> coarse_radius;
     std::string shift;
     // GDMLT knobs.
     std::optional<double> primal_weight;
@@ -168,6 +169,7 @@ reconstruct::ReconstructConfig reconstruct_config(const RenderOptions& options) 
         rc.method = *method;
     }
     if (options.alpha) rc.alpha = *options.alpha;
+    rc.coarse_radius = options.coarse_radius.value_or(reconstruct::kDefaultCoarseRadius);
     return rc;
 }
 
@@ -323,6 +325,7 @@ IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, Prog
         {"shift", shift},
         {"reconstruct", reconstruct::to_string(rc.method)},
         {"alpha", rc.alpha},
+        {"coarse_radius", rc.coarse_radius},
         {"max_depth", settings.path.max_depth},
         {"hide_emitters", settings.path.hide_emitters}};
     const mlt::GdptOutput out = mlt::render_gdpt(
@@ -383,6 +386,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options, Pro
                 {"primal_weight", settings.primal_weight},
                 {"reconstruct", reconstruct::to_string(rc.method)},
                 {"alpha", rc.alpha},
+                {"coarse_radius", rc.coarse_radius},
                 {"p_large", settings.mutation.p_large},
                 {"mutation_size", {settings.mutation.s1, settings.mutation.s2}},
                 {"image_mutation_size_pixels", settings.mutation.image_s2_pixels},
@@ -581,6 +585,11 @@ int main(int argc, char** argv) {
     render_cmd->add_option("--reconstruct", render.reconstruct_method,
                            "Gradient domain: l1 | l2 | cv (l1)");
     render_cmd->add_option("--alpha", render.alpha, "Gradient domain: weight of the primal (0.2)");
+    render_cmd
+        ->add_option("--coarse-radius", render.coarse_radius,
+                     "Gradient domain: restore the primal's scales beyond this many pixels "
+                     "(energy; 0 = off, default 8)")
+        ->check(CLI::Range(0, 4096));
     render_cmd->add_option("--shift", render.shift,
                            "Gradient domain: auto | reconnect | halfvector | replay");
     render_cmd->add_option("--primal-weight", render.primal_weight,

@@ -24,10 +24,11 @@ namespace {
 struct ReconstructOptions {
     std::string input;
     std::string output;
-    std::string method;           // empty: the render's (EXR header), else l1
-    std::optional<double> alpha;  // unset: the render's, else 0.2
-    int iterations = 0;           // 0 = the method's default
-    double tolerance = 0.0;       // 0 = the method's default
+    std::string method;                // empty: the render's (EXR header), else l1
+    std::optional<double> alpha;       // unset: the render's, else 0.2
+    std::optional<int> coarse_radius;  // unset: the render's, else kDefaultCoarseRadius
+    int iterations = 0;                // 0 = the method's default
+    double tolerance = 0.0;            // 0 = the method's default
     int threads = 0;
     float exposure = 0.f;
     bool quiet = false;
@@ -92,6 +93,8 @@ void defaults_from_header(const ExrAttributes& attributes, ReconstructOptions& o
         o.method = j["reconstruct"].get<std::string>();
     if (!o.alpha && j.contains("alpha") && j["alpha"].is_number())
         o.alpha = j["alpha"].get<double>();
+    if (!o.coarse_radius && j.contains("coarse_radius") && j["coarse_radius"].is_number_integer())
+        o.coarse_radius = j["coarse_radius"].get<int>();
 }
 
 int run_reconstruct(ReconstructOptions o) {
@@ -111,6 +114,8 @@ int run_reconstruct(ReconstructOptions o) {
     reconstruct::ReconstructConfig config;
     config.method = *method;
     config.alpha = *o.alpha;
+    config.coarse_radius = o.coarse_radius.value_or(reconstruct::kDefaultCoarseRadius);
+    if (config.coarse_radius < 0) throw InputError("--coarse-radius must not be negative");
     if (o.iterations > 0) {
         switch (*method) {
             case reconstruct::Method::l2:
@@ -139,6 +144,7 @@ int run_reconstruct(ReconstructOptions o) {
     const std::string output = o.output.empty() ? default_output(o.input) : o.output;
     attributes["gdmlt.reconstruct.method"] = o.method;
     attributes["gdmlt.reconstruct.alpha"] = std::to_string(*o.alpha);
+    attributes["gdmlt.reconstruct.coarse_radius"] = std::to_string(config.coarse_radius);
     attributes["gdmlt.reconstruct.iterations"] = std::to_string(s.iterations);
     attributes["gdmlt.reconstruct.cg_iterations"] = std::to_string(s.cg_iterations);
     attributes["gdmlt.reconstruct.relative_residual"] = std::to_string(s.final_relative_residual);
@@ -178,6 +184,9 @@ void add_reconstruct_command(CLI::App& app, int& exit_code) {
     cmd->add_option("--alpha", options->alpha,
                     "Screening weight of the primal (default: the render's, else 0.2)")
         ->check(CLI::NonNegativeNumber);
+    cmd->add_option("--coarse-radius", options->coarse_radius,
+                    "Restore the primal's scales beyond this many pixels (default: the render's, "
+                    "else 8; 0 = off)");
     cmd->add_option("--iterations", options->iterations,
                     "l2: max CG iterations, l1: IRLS iterations, cv: iterations")
         ->check(CLI::PositiveNumber);

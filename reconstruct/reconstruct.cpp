@@ -3,9 +3,13 @@
 
 #include <stdexcept>
 
+#include "reconstruct/coarse_correction.h"
+
 namespace gdmlt::reconstruct {
 
-ReconstructResult reconstruct(const ReconstructInput& input, const ReconstructConfig& config) {
+namespace {
+
+ReconstructResult solve(const ReconstructInput& input, const ReconstructConfig& config) {
     switch (config.method) {
         case Method::l2:
             return solve_l2(input, config);
@@ -15,6 +19,15 @@ ReconstructResult reconstruct(const ReconstructInput& input, const ReconstructCo
             return solve_cv(input, config);
     }
     return solve_l1(input, config);
+}
+
+}  // namespace
+
+ReconstructResult reconstruct(const ReconstructInput& input, const ReconstructConfig& config) {
+    if (config.coarse_radius < 0) throw std::invalid_argument("reconstruct: coarse_radius < 0");
+    ReconstructResult result = solve(input, config);
+    restore_coarse_scales(result.image, input.primal, config.coarse_radius);
+    return result;
 }
 
 ReconstructResult reconstruct_buffers(const GradientBuffers& buffers,
