@@ -70,6 +70,7 @@ struct RenderOptions {
     std::optional<double> primal_weight;
     std::optional<int> very_direct_samples;
     std::optional<double> bootstrap_error;
+    std::optional<bool> primal_from_offsets;
 };
 
 /// What an integrator hands back to the CLI: the image, its statistics, whether it is partial.
@@ -171,6 +172,19 @@ reconstruct::ReconstructConfig reconstruct_config(const RenderOptions& options) 
     if (options.alpha) rc.alpha = *options.alpha;
     rc.coarse_radius = options.coarse_radius.value_or(reconstruct::kDefaultCoarseRadius);
     return rc;
+}
+
+/// The final image of a gradient-domain render (reconstruction + very direct light) and its
+/// raw layers; returns the seconds the solve took.
+double solve_gradient_render(const GradientBuffers& buffers,
+                             const reconstruct::ReconstructConfig& config, IntegratorResult& r) {
+    const auto start = std::chrono::steady_clock::now();
+    r.image = reconstruct::reconstruct_buffers(buffers, config).image;
+    r.extra_layers = {ExrLayer{"primal", {"R", "G", "B"}, buffers.primal},
+                      ExrLayer{"dx", {"R", "G", "B"}, buffers.dx},
+                      ExrLayer{"dy", {"R", "G", "B"}, buffers.dy},
+                      ExrLayer{"very_direct", {"R", "G", "B"}, buffers.very_direct}};
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 json shifts_json(const manifold::ShiftCounters& shifts) {
@@ -331,16 +345,8 @@ IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, Prog
     const mlt::GdptOutput out = mlt::render_gdpt(
         scene, settings, &g_interrupted,
         [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
-    const auto solve_start = std::chrono::steady_clock::now();
-    const reconstruct::ReconstructResult solved = reconstruct::reconstruct_buffers(out.buffers, rc);
-    const double solve_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - solve_start).count();
-    r.image = solved.image;
-    r.extra_layers = {ExrLayer{"primal", {"R", "G", "B"}, out.buffers.primal},
-                      ExrLayer{"dx", {"R", "G", "B"}, out.buffers.dx},
-                      ExrLayer{"dy", {"R", "G", "B"}, out.buffers.dy},
-                      ExrLayer{"very_direct", {"R", "G", "B"}, out.buffers.very_direct},
-                      ExrLayer{"sample_count", {"Y"}, out.buffers.sample_count}};
+    const double solve_s = solve_gradient_render(out.buffers, rc, r);
+    r.extra_layers.push_back(ExrLayer{"sample_count", {"Y"}, out.buffers.sample_count});
     const mlt::GdptStats& s = out.stats;
     r.partial = s.interrupted;
     r.stats = {
@@ -365,6 +371,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options, Pro
     if (options.primal_weight) settings.primal_weight = *options.primal_weight;
     if (options.very_direct_samples) settings.very_direct_samples = *options.very_direct_samples;
     if (options.bootstrap_error) settings.bootstrap_relative_error = *options.bootstrap_error;
+    if (options.primal_from_offsets) settings.primal_from_offsets = *options.primal_from_offsets;
     settings.time_budget_s = options.time_s;
     settings.seed = options.seed.value_or(scene.sampler().seed);
     if (options.max_depth) settings.path.max_depth = *options.max_depth;
@@ -384,6 +391,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options, Pro
                 {"shift", shift},
                 {"neighbours", "lattice"},
                 {"primal_weight", settings.primal_weight},
+                {"primal_from_offsets", settings.primal_from_offsets},
                 {"reconstruct", reconstruct::to_string(rc.method)},
                 {"alpha", rc.alpha},
                 {"coarse_radius", rc.coarse_radius},
@@ -400,16 +408,8 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options, Pro
     const mlt::GdmltOutput out = mlt::render_gdmlt(
         scene, settings, &g_interrupted,
         [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
-    const auto solve_start = std::chrono::steady_clock::now();
-    const reconstruct::ReconstructResult solved = reconstruct::reconstruct_buffers(out.buffers, rc);
-    const double solve_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - solve_start).count();
-    r.image = solved.image;
-    r.extra_layers = {ExrLayer{"primal", {"R", "G", "B"}, out.buffers.primal},
-                      ExrLayer{"dx", {"R", "G", "B"}, out.buffers.dx},
-                      ExrLayer{"dy", {"R", "G", "B"}, out.buffers.dy},
-                      ExrLayer{"very_direct", {"R", "G", "B"}, out.buffers.very_direct},
-                      ExrLayer{"sample_density", {"Y"}, out.sample_density}};
+    const double solve_s = solve_gradient_render(out.buffers, rc, r);
+    r.extra_layers.push_back(ExrLayer{"sample_density", {"Y"}, out.sample_density});
     const mlt::GdmltStats& s = out.stats;
     r.partial = s.interrupted;
     r.stats = chain_stats_json(s);
@@ -594,6 +594,9 @@ int main(int argc, char** argv) {
                            "Gradient domain: auto | reconnect | halfvector | replay");
     render_cmd->add_option("--primal-weight", render.primal_weight,
                            "GDMLT: weight w of the primal in the target sum|D| + w Y(C) (1)");
+    render_cmd->add_option("--primal-from-offsets", render.primal_from_offsets,
+                           "GDMLT: primal also from the neighbours' offset paths (G-PT's MIS "
+                           "between pixels): true | false");
     render_cmd->add_option("--very-direct-samples", render.very_direct_samples,
                            "GDMLT: spp of the pass for emitters seen directly (64)");
     render_cmd->add_option("--bootstrap-error", render.bootstrap_error,

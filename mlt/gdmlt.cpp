@@ -49,25 +49,25 @@ class GradientTarget final : public ChainTarget {
 
         const std::span<const NeighbourLink> links = neighbours_.links(pixel);
         // Lattice pixels have at most 4 links; ADAP's may have more.
-        std::array<Rgb, 8> small;
-        std::vector<Rgb> large;
-        std::span<Rgb> differences(small.data(), links.size());
+        std::array<LinkEstimate, 8> small;
+        std::vector<LinkEstimate> large;
+        std::span<LinkEstimate> estimates(small.data(), links.size());
         if (links.size() > small.size()) {
             large.resize(links.size());
-            differences = large;
+            estimates = large;
         }
         const GradientSample g =
             sample_gradients(scene_,
                              Vec2f(static_cast<float>(film.crop_offset_x) + fx,
                                    static_cast<float>(film.crop_offset_y) + fy),
-                             stream, settings_.path, settings_.shift, links, differences,
+                             stream, settings_.path, settings_.shift, links, estimates,
                              counters.paths, counters.shifts);
 
         bool finite = is_finite(g.primal);
         double target = settings_.primal_weight * static_cast<double>(luminance(g.primal));
-        for (const Rgb& d : differences) {
-            finite = finite && is_finite(d);
-            target += luminance_of_magnitude(d);
+        for (const LinkEstimate& e : estimates) {
+            finite = finite && is_finite(e.base) && is_finite(e.offset);
+            target += luminance_of_magnitude(e.difference());
         }
         if (!finite || !std::isfinite(target)) {
             state.nonfinite = true;
@@ -75,15 +75,34 @@ class GradientTarget final : public ChainTarget {
         }
         if (!(target > 0.0)) return;
         state.target = target;
-        if (!is_black(g.primal))
-            state.splats.push_back({static_cast<std::uint32_t>(pixel), g.primal});
+        const auto slot = [](std::size_t index) { return static_cast<std::uint32_t>(index); };
+        if (settings_.primal_from_offsets && !links.empty()) {
+            // G-PT's primal (mlt/gradient_sample.h, LinkEstimate): pixel i's share of each pair
+            // here, and each neighbour j's share, estimated by the offset, there; 1/n per pair.
+            // f* > 0 covers them: with C = 0 every base and offset half is 0 too.
+            Rgb own = Rgb::Zero();
+            for (const LinkEstimate& e : estimates) own += e.base;
+            own /= static_cast<float>(links.size());
+            if (!is_black(own)) state.splats.push_back({slot(pixel), own});
+            for (std::size_t k = 0; k < links.size(); ++k) {
+                const GradientEdge& edge =
+                    neighbours_.edges()[static_cast<std::size_t>(links[k].edge)];
+                const auto other =
+                    static_cast<std::size_t>(links[k].from_end ? edge.to : edge.from);
+                const Rgb share =
+                    estimates[k].offset / static_cast<float>(neighbours_.links(other).size());
+                if (!is_black(share)) state.splats.push_back({slot(other), share});
+            }
+        } else if (!is_black(g.primal)) {
+            state.splats.push_back({slot(pixel), g.primal});
+        }
         const std::size_t edge_slots = neighbours_.pixel_count();
         for (std::size_t k = 0; k < links.size(); ++k) {
-            if (is_black(differences[k])) continue;
+            const Rgb d = estimates[k].difference();
+            if (is_black(d)) continue;
             // A difference sampled at the edge's `to` end estimates I(from) - I(to).
-            state.splats.push_back(
-                {static_cast<std::uint32_t>(edge_slots + static_cast<std::size_t>(links[k].edge)),
-                 links[k].from_end ? differences[k] : Rgb(-differences[k])});
+            state.splats.push_back({slot(edge_slots + static_cast<std::size_t>(links[k].edge)),
+                                    links[k].from_end ? d : Rgb(-d)});
         }
     }
 
@@ -131,24 +150,12 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
     }
 
     // 2. The chains.
-    ChainRunnerSettings runner;
-    runner.mutation = settings.mutation;
-    runner.image_width = width;
-    runner.image_height = height;
-    runner.mutations =
-        static_cast<std::uint64_t>(std::llround(settings.mutations_per_pixel * pixels));
-    runner.chains =
-        settings.chains > 0
-            ? settings.chains
-            : static_cast<int>(std::clamp<std::uint64_t>(runner.mutations / 4096, 64, 4096));
-    runner.bootstrap_samples = static_cast<std::uint64_t>(settings.bootstrap_samples);
+    // One chain per 4096 proposals, at least 64 (GdmltSettings::chains).
+    ChainRunnerSettings runner = runner_settings(
+        settings, width, height, 4096, 64,
+        settings.time_budget_s > 0.0 ? std::max(settings.time_budget_s - seconds_since(start), 1e-3)
+                                     : 0.0);
     runner.bootstrap_relative_error = settings.bootstrap_relative_error;
-    if (settings.time_budget_s > 0.0) {
-        runner.mutations = 0;  // the time alone decides
-        runner.time_budget_s = std::max(settings.time_budget_s - seconds_since(start), 1e-3);
-    }
-    runner.seed = settings.seed;
-    runner.kelemen_weights = settings.kelemen_weights;
     const GradientTarget target(scene, settings, neighbours);
     const ChainRunnerOutput chains = run_chains(target, runner, cancel, progress);
     const PathCounters direct_counters = out.stats.counters;
@@ -184,24 +191,16 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
 
 GdmltSettings gdmlt_settings_from_scene(const IntegratorSettings& integrator) {
     GdmltSettings s;
-    s.path.max_depth = integrator.max_depth;
-    s.path.rr_depth = integrator.rr_depth;
-    s.path.hide_emitters = integrator.hide_emitters;
-    if (integrator.desc.type != "gdmlt") return s;
+    if (integrator.desc.type != "gdmlt") {
+        read_chain_settings(integrator, nullptr, s);
+        return s;
+    }
     PropertyReader props(integrator.desc);
-    props.mark_read({"max_depth", "rr_depth", "hide_emitters"});
-    s.mutation.p_large = props.get_float("p_large", s.mutation.p_large);
-    s.mutation.s1 = props.get_float("mutation_size_low", s.mutation.s1);
-    s.mutation.s2 = props.get_float("mutation_size_high", s.mutation.s2);
-    s.mutation.image_s2_pixels = props.get_float("image_mutation_size", s.mutation.image_s2_pixels);
-    s.chains = static_cast<int>(props.get_int("chains", s.chains));
-    s.bootstrap_samples = static_cast<int>(props.get_int("luminance_samples", s.bootstrap_samples));
-    s.bootstrap_samples = static_cast<int>(props.get_int("bootstrap_samples", s.bootstrap_samples));
+    read_chain_settings(integrator, &props, s);
     s.bootstrap_relative_error =
         props.get_float("bootstrap_relative_error", s.bootstrap_relative_error);
-    s.mutations_per_pixel = props.get_float("mutations_per_pixel", s.mutations_per_pixel);
-    s.kelemen_weights = props.get_bool("kelemen_style_weights", s.kelemen_weights);
     s.primal_weight = props.get_float("primal_weight", s.primal_weight);
+    s.primal_from_offsets = props.get_bool("primal_from_offsets", s.primal_from_offsets);
     s.very_direct_samples =
         static_cast<int>(props.get_int("very_direct_samples", s.very_direct_samples));
     props.check_all_read();
@@ -210,18 +209,9 @@ GdmltSettings gdmlt_settings_from_scene(const IntegratorSettings& integrator) {
 }
 
 void validate_gdmlt_settings(const GdmltSettings& s, const FileLoc& loc) {
-    if (!(s.mutation.p_large >= 0.0 && s.mutation.p_large <= 1.0))
-        throw InputError(loc, "p_large must lie in [0, 1]");
-    if (!(s.mutation.s1 > 0.0 && s.mutation.s1 < s.mutation.s2 && s.mutation.s2 < 1.0))
-        throw InputError(loc, "mutation sizes must satisfy 0 < s1 < s2 < 1");
-    if (!(s.mutation.image_s2_pixels >= 0.0))
-        throw InputError(loc, "image_mutation_size must not be negative");
-    if (s.chains < 0) throw InputError(loc, "chains must not be negative");
-    if (s.bootstrap_samples < 1) throw InputError(loc, "bootstrap_samples must be positive");
+    validate_chain_settings(s, loc);
     if (!(s.bootstrap_relative_error >= 0.0 && s.bootstrap_relative_error < 1.0))
         throw InputError(loc, "bootstrap_relative_error must lie in [0, 1)");
-    if (!(s.mutations_per_pixel > 0.0 && std::isfinite(s.mutations_per_pixel)))
-        throw InputError(loc, "mutations_per_pixel must be positive");
     if (!(s.primal_weight > 0.0 && std::isfinite(s.primal_weight)))
         throw InputError(loc,
                          "primal_weight must be positive (the chain must reach every pixel "

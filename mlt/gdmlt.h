@@ -24,33 +24,35 @@
 #include "core/scene/scene.h"
 #include "manifold/shift.h"
 #include "mlt/chain_runner.h"
+#include "mlt/chain_settings.h"
 #include "mlt/mutation.h"
 
 namespace gdmlt::mlt {
 
-struct GdmltSettings {
-    MutationSettings mutation;
-    /// 0: one per 4096 proposals, 64 .. 4096 (256 at 256^2 and 16 per pixel). Proposals cost
-    /// 5+ paths, so chains are short; 64 chains left a chain brightness spread of 0.63 on
-    /// cbox_glass_sphere at 16 s.
-    int chains = 0;
-    int bootstrap_samples = 100000;
+/// The shared chain knobs (mutations_per_pixel: proposals, each tracing the base path and one
+/// offset per neighbour, 16 by default; chains: 0 = one per 4096 proposals, 64 .. 4096, which
+/// is 256 at 256^2 pixels; 64 chains left a chain brightness spread of 0.63 on
+/// cbox_glass_sphere at 16 s, too few to average their correlated errors) and GDMLT's own.
+struct GdmltSettings : MarkovChainSettings {
+    GdmltSettings() { mutations_per_pixel = 16.0; }
+
     /// The bootstrap grows until b*'s standard error is below this fraction of b* (up to 16x
-    /// bootstrap_samples): the whole image's brightness is b*'s.
+    /// bootstrap_samples, and with a time budget within a tenth of it): the whole image's
+    /// brightness is b*'s. max_depth -1 is capped at kUnboundedDepthCap.
     double bootstrap_relative_error = 0.01;
-    /// Proposals per pixel (each traces the base path and one offset per neighbour); an upper
-    /// bound when time_budget_s > 0.
-    double mutations_per_pixel = 16.0;
-    double time_budget_s = 0.0;
-    std::uint64_t seed = 0;
-    PathSamplerSettings path;  // max_depth -1 is capped at kUnboundedDepthCap
     manifold::ShiftKind shift = manifold::ShiftKind::Auto;
     /// w in f* = sum_k Y(|D_k|) + w Y(C). Measured at 16 s (2 seeds each, cbox_glass_sphere /
     /// caustic_glass_light): w = 0.25, 1, 4 gave final relMSEs within each other's seed spread,
     /// but the primal layer's relMSE was 1.3-1.5x lower at w = 1 than at 0.25 (the primal
     /// carries the image's low frequencies and its energy), and no better at 4.
     double primal_weight = 1.0;
-    bool kelemen_weights = true;
+    /// The primal of every pixel from its own base paths and from the offsets of its
+    /// neighbours' (G-PT's MIS between pixels), instead of from its own base paths only.
+    /// Measured at 16 s, seeds 0-2: the primal layer's relMSE 2.2-2.7x lower on
+    /// cbox_glass_sphere and 1.6-2.1x on caustic_glass_light, but the final image's no better
+    /// (medians 0.0066 vs 0.0065 and 0.198 vs 0.173): the reconstruction takes only the
+    /// primal's coarse scales, where its noise averages out anyway. Off by default.
+    bool primal_from_offsets = false;
     /// Samples per pixel of the very direct pass (camera rays only, about 2% of a 16 s render
     /// at 256^2; fewer leave visible anti-aliasing noise on the edges of lights).
     int very_direct_samples = 64;

@@ -50,8 +50,8 @@ GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
     tbb::enumerable_thread_specific<PathCounters> counters;
     tbb::enumerable_thread_specific<manifold::ShiftCounters> shift_counters;
     tbb::enumerable_thread_specific<std::uint64_t> dropped(0);
-    tbb::enumerable_thread_specific<std::vector<Rgb>> scratch(
-        std::vector<Rgb>(neighbours.max_links(), Rgb::Zero()));
+    tbb::enumerable_thread_specific<std::vector<LinkEstimate>> scratch(
+        std::vector<LinkEstimate>(neighbours.max_links()));
 
     GdptOutput out;
     PixelPassSettings passes;
@@ -65,14 +65,14 @@ GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
             const std::size_t pixel = static_cast<std::size_t>(y) * width + x;
             PixelSums& sum = sums[pixel];
             const std::span<const NeighbourLink> links = neighbours.links(pixel);
-            std::vector<Rgb>& differences = scratch.local();
+            std::vector<LinkEstimate>& estimates = scratch.local();
             const GradientSample g = sample_gradients(
                 scene, film_position, stream, settings.path, settings.shift, links,
-                {differences.data(), links.size()}, counters.local(), shift_counters.local());
+                {estimates.data(), links.size()}, counters.local(), shift_counters.local());
             ++sum.samples;
             bool finite = is_finite(g.primal) && is_finite(g.very_direct);
             for (std::size_t k = 0; k < links.size(); ++k)
-                finite = finite && is_finite(differences[k]);
+                finite = finite && is_finite(estimates[k].difference());
             if (!finite) {
                 ++dropped.local();
                 return;
@@ -81,7 +81,7 @@ GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
             sum.very_direct += g.very_direct.cast<double>();
             const std::size_t first = neighbours.first_link(pixel);
             for (std::size_t k = 0; k < links.size(); ++k)
-                link_sums[first + k] += differences[k].cast<double>();
+                link_sums[first + k] += estimates[k].difference().cast<double>();
         },
         [&](int spp_completed) {
             if (progress)

@@ -16,7 +16,7 @@ bool is_very_direct(const manifold::Contribution& c) {
 GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
                                 SampleStream& stream, const PathSamplerSettings& path_in,
                                 manifold::ShiftKind shift, std::span<const NeighbourLink> links,
-                                std::span<Rgb> differences, PathCounters& counters,
+                                std::span<LinkEstimate> estimates, PathCounters& counters,
                                 manifold::ShiftCounters& shift_counters) {
     PathSamplerSettings path = path_in;
     if (path.max_depth < 0) path.max_depth = kUnboundedDepthCap;
@@ -39,7 +39,8 @@ GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
         }
     }
     for (std::size_t k = 0; k < links.size(); ++k) {
-        differences[k] = Rgb::Zero();
+        LinkEstimate& estimate = estimates[k];
+        estimate = LinkEstimate{};
         // Differences are sums over the base's own terms: with none (beyond very direct light)
         // there is nothing to shift. A term only the offset has is estimated from the other
         // end, where its weight is 1 because this direction cannot produce it.
@@ -74,8 +75,9 @@ GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
                     f_offset = t.f * static_cast<float>(jacobian);
                 }
             }
-            const double weight_over_pdf = c.pdf / (a2 + b2 + shifted2);
-            differences[k] += (f_offset - c.f) * static_cast<float>(weight_over_pdf);
+            const auto weight_over_pdf = static_cast<float>(c.pdf / (a2 + b2 + shifted2));
+            estimate.base += c.f * weight_over_pdf;
+            estimate.offset += f_offset * weight_over_pdf;
         }
     }
     return out;

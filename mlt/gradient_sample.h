@@ -35,13 +35,25 @@ struct GradientSample {
     Rgb very_direct = Rgb::Zero();
 };
 
+/// The two halves of one link's difference D = offset - base: the base path's terms and the
+/// offset path's (Jacobian included), each times the same MIS weight over both shift
+/// directions (and both techniques, BSDF sampling and NEE). `base` is also pixel i's share of
+/// its primal for this pair (the pair's weights for a path through i sum to one over "based in
+/// i" and "shifted from j"), and `offset` is pixel j's share estimated from i: G-PT's "MIS
+/// between pixels" primal, (1 / n_i) sum over i's n_i links of both (Kettunen et al. 2015).
+struct LinkEstimate {
+    Rgb base = Rgb::Zero();
+    Rgb offset = Rgb::Zero();
+    Rgb difference() const { return offset - base; }
+};
+
 /// Samples a base path through `film_position` (full-film raster coordinates) and, for every
-/// link of its pixel, the MIS-weighted difference D towards the link's neighbour, written to
-/// `differences[k]` (same length as `links`).
+/// link of its pixel, the MIS-weighted estimates towards the link's neighbour, written to
+/// `estimates[k]` (same length as `links`).
 GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
                                 SampleStream& stream, const PathSamplerSettings& path,
                                 manifold::ShiftKind shift, std::span<const NeighbourLink> links,
-                                std::span<Rgb> differences, PathCounters& counters,
+                                std::span<LinkEstimate> estimates, PathCounters& counters,
                                 manifold::ShiftCounters& shift_counters);
 
 }  // namespace gdmlt::mlt

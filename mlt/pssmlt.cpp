@@ -60,22 +60,12 @@ class PathTracerTarget final : public ChainTarget {
 
 PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator) {
     PssmltSettings s;
-    s.path.max_depth = integrator.max_depth;
-    s.path.rr_depth = integrator.rr_depth;
-    s.path.hide_emitters = integrator.hide_emitters;
-    if (integrator.desc.type != "pssmlt") return s;
+    if (integrator.desc.type != "pssmlt") {
+        read_chain_settings(integrator, nullptr, s);
+        return s;
+    }
     PropertyReader props(integrator.desc);
-    props.mark_read({"max_depth", "rr_depth", "hide_emitters"});
-    s.mutation.p_large = props.get_float("p_large", s.mutation.p_large);
-    s.mutation.s1 = props.get_float("mutation_size_low", s.mutation.s1);
-    s.mutation.s2 = props.get_float("mutation_size_high", s.mutation.s2);
-    s.mutation.image_s2_pixels = props.get_float("image_mutation_size", s.mutation.image_s2_pixels);
-    s.chains = static_cast<int>(props.get_int("chains", s.chains));
-    // Mitsuba 0.6 calls the bootstrap "luminanceSamples".
-    s.bootstrap_samples = static_cast<int>(props.get_int("luminance_samples", s.bootstrap_samples));
-    s.bootstrap_samples = static_cast<int>(props.get_int("bootstrap_samples", s.bootstrap_samples));
-    s.mutations_per_pixel = props.get_float("mutations_per_pixel", s.mutations_per_pixel);
-    s.kelemen_weights = props.get_bool("kelemen_style_weights", s.kelemen_weights);
+    read_chain_settings(integrator, &props, s);
     s.direct_samples = static_cast<int>(props.get_int("direct_samples", s.direct_samples));
     props.check_all_read();
     validate_pssmlt_settings(s, integrator.desc.loc);
@@ -83,16 +73,7 @@ PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator) 
 }
 
 void validate_pssmlt_settings(const PssmltSettings& s, const FileLoc& loc) {
-    if (!(s.mutation.p_large >= 0.0 && s.mutation.p_large <= 1.0))
-        throw InputError(loc, "p_large must lie in [0, 1]");
-    if (!(s.mutation.s1 > 0.0 && s.mutation.s1 < s.mutation.s2 && s.mutation.s2 < 1.0))
-        throw InputError(loc, "mutation sizes must satisfy 0 < s1 < s2 < 1");
-    if (s.mutation.image_s2_pixels < 0.0)
-        throw InputError(loc, "image_mutation_size must not be negative");
-    if (s.chains < 0) throw InputError(loc, "chains must not be negative");
-    if (s.bootstrap_samples < 1) throw InputError(loc, "bootstrap_samples must be positive");
-    if (!(s.mutations_per_pixel > 0.0))
-        throw InputError(loc, "mutations_per_pixel must be positive");
+    validate_chain_settings(s, loc);
 }
 
 PssmltOutput render_pssmlt(const Scene& scene, const PssmltSettings& settings_in,
@@ -106,21 +87,9 @@ PssmltOutput render_pssmlt(const Scene& scene, const PssmltSettings& settings_in
     const int width = film.crop_width, height = film.crop_height;
     const auto pixels = static_cast<double>(width) * height;
 
-    ChainRunnerSettings runner;
-    runner.mutation = settings.mutation;
-    runner.image_width = width;
-    runner.image_height = height;
-    runner.mutations =
-        static_cast<std::uint64_t>(std::llround(settings.mutations_per_pixel * pixels));
-    runner.chains =
-        settings.chains > 0
-            ? settings.chains
-            : static_cast<int>(std::clamp<std::uint64_t>(runner.mutations / 16384, 16, 4096));
-    runner.bootstrap_samples = static_cast<std::uint64_t>(settings.bootstrap_samples);
-    runner.time_budget_s = settings.time_budget_s;
-    if (runner.time_budget_s > 0.0) runner.mutations = 0;  // the time alone decides
-    runner.seed = settings.seed;
-    runner.kelemen_weights = settings.kelemen_weights;
+    // One chain per 16384 mutations, at least 16.
+    const ChainRunnerSettings runner =
+        runner_settings(settings, width, height, 16384, 16, settings.time_budget_s);
     const PathTracerTarget target(scene, settings.path);
     ChainRunnerOutput chains = run_chains(target, runner, cancel, progress);
     if (!(chains.stats.b > 0.0))

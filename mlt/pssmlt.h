@@ -11,23 +11,15 @@
 #include "core/path/path_sampler.h"
 #include "core/scene/scene.h"
 #include "mlt/chain_runner.h"
+#include "mlt/chain_settings.h"
 #include "mlt/mutation.h"
 
 namespace gdmlt::mlt {
 
-/// Every PSSMLT knob with its default. Read from the scene's <integrator type="pssmlt">
+/// Every PSSMLT knob with its default: the shared chain knobs (chains: 0 = one per 16384
+/// mutations, at least 16) and its own. Read from the scene's <integrator type="pssmlt">
 /// (pssmlt_settings_from_scene) and overridden by the command line.
-struct PssmltSettings {
-    MutationSettings mutation;
-    int chains = 0;                     // 0: one per 16384 mutations, at least 16
-    int bootstrap_samples = 100000;     // independent paths estimating b; raised to 10 x chains
-    double mutations_per_pixel = 64.0;  // budget (upper bound when time_budget_s > 0)
-    double time_budget_s = 0.0;
-    std::uint64_t seed = 0;
-    PathSamplerSettings path;
-    /// Kelemen's MIS of large steps with the chain (Kelemen et al. 2002, sec. 5; unbiased
-    /// with p_large > 0); false: Veach's expected values only.
-    bool kelemen_weights = true;
+struct PssmltSettings : MarkovChainSettings {
     /// > 0: emitters seen directly and direct lighting are rendered separately by the path
     /// tracer with this many samples per pixel, and the chains see only longer paths (Mitsuba's
     /// pssmlt `directSamples`). -1 (default): the chains render everything.

@@ -88,13 +88,14 @@ mlt::GdmltSettings small_gdmlt(std::uint64_t seed, double mutations_per_pixel) {
 /// mean) when b* is 5% off. An MIS weight wrong in the estimator both share cannot show here:
 /// the L2 test below catches it (relMSE 0.057 against a bound of 0.01 with both directions at
 /// weight 1).
-void check_gdmlt_against_gdpt(bool glass) {
+void check_gdmlt_against_gdpt(bool glass, bool primal_from_offsets = false) {
     const Scene scene = test::scene_from_xml(test::cornell_box_xml(8, glass));
     constexpr int kRuns = 8;
     constexpr std::size_t pixels = 64;
     const RunStatistics chain = over_runs(kRuns, pixels, [&](int r) {
-        return mlt::render_gdmlt(scene, small_gdmlt(100 + static_cast<std::uint64_t>(r), 1024))
-            .buffers;
+        mlt::GdmltSettings s = small_gdmlt(100 + static_cast<std::uint64_t>(r), 1024);
+        s.primal_from_offsets = primal_from_offsets;
+        return mlt::render_gdmlt(scene, s).buffers;
     });
     const RunStatistics pixel = over_runs(kRuns, pixels, [&](int r) {
         mlt::GdptSettings s;
@@ -141,12 +142,10 @@ TEST(Gdmlt, PrimalAndEdgeDifferencesAgreeWithGdptOnABoxWithAGlassSphere) {
     check_gdmlt_against_gdpt(true);
 }
 
-double mean_luminance(const Image& image) {
-    double sum = 0.0;
-    for (std::size_t i = 0; i < image.pixel_count(); ++i)
-        sum +=
-            luminance(Rgb(image.pixels[3 * i], image.pixels[3 * i + 1], image.pixels[3 * i + 2]));
-    return sum / static_cast<double>(image.pixel_count());
+TEST(Gdmlt, PrimalFromNeighbourOffsetsAgreesWithGdptOnADiffuseBox) {
+    // The same check with G-PT's primal (each pixel also from its neighbours' offsets): a
+    // wrong 1/n share or a primal splatted into the wrong neighbour shows in the pixels.
+    check_gdmlt_against_gdpt(false, true);
 }
 
 TEST(Gdmlt, L2ReconstructionConvergesToThePathTracersImage) {
@@ -176,9 +175,9 @@ TEST(Gdmlt, L2ReconstructionConvergesToThePathTracersImage) {
     l2.method = reconstruct::Method::l2;
     const Image final_image = reconstruct::reconstruct_buffers(out.buffers, l2).image;
 
-    const double ref_mean = mean_luminance(reference.image);
+    const double ref_mean = test::mean_luminance(reference.image);
     const double b_relative_error = out.stats.b_standard_error / out.stats.b;
-    EXPECT_NEAR(mean_luminance(final_image) / ref_mean, 1.0, 0.01 + 3.0 * b_relative_error);
+    EXPECT_NEAR(test::mean_luminance(final_image) / ref_mean, 1.0, 0.01 + 3.0 * b_relative_error);
     // Measured 0.0045 (seed 9); 0.01 fails for a systematic per-pixel error above ~10%.
     const double rel_mse = test::relative_mse(final_image.pixels, reference.image.pixels);
     EXPECT_LT(rel_mse, 0.01);
@@ -203,7 +202,7 @@ TEST(Gdmlt, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
     EXPECT_TRUE(one.buffers.dx == two.buffers.dx);
     EXPECT_TRUE(one.buffers.dy == two.buffers.dy);
     EXPECT_TRUE(one.buffers.very_direct == two.buffers.very_direct);
-    EXPECT_GT(mean_luminance(one.buffers.primal), 0.0);
+    EXPECT_GT(test::mean_luminance(one.buffers.primal), 0.0);
 }
 
 TEST(Gdmlt, EveryShiftFailsAndTheImageIsStillFiniteAndRight) {
@@ -218,7 +217,7 @@ TEST(Gdmlt, EveryShiftFailsAndTheImageIsStillFiniteAndRight) {
     pt.spp = 16384;
     pt.seed = 1;
     const RenderOutput reference = render_path(scene, pt);
-    const double ref_mean = mean_luminance(reference.image);
+    const double ref_mean = test::mean_luminance(reference.image);
     ASSERT_GT(ref_mean, 0.0);
 
     mlt::GdmltSettings s = small_gdmlt(5, 256);
@@ -237,7 +236,7 @@ TEST(Gdmlt, EveryShiftFailsAndTheImageIsStillFiniteAndRight) {
     const Image final_image = reconstruct::reconstruct_buffers(out.buffers, l2).image;
     // b* from 200k samples of which ~1/200 hit the sphere: relative error ~3%; 4 of them.
     const double b_relative_error = out.stats.b_standard_error / out.stats.b;
-    EXPECT_NEAR(mean_luminance(final_image) / ref_mean, 1.0, 4.0 * b_relative_error + 0.01);
+    EXPECT_NEAR(test::mean_luminance(final_image) / ref_mean, 1.0, 4.0 * b_relative_error + 0.01);
     EXPECT_LT(b_relative_error, 0.05);
 }
 

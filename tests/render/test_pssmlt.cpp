@@ -11,14 +11,6 @@
 namespace gdmlt {
 namespace {
 
-double mean_luminance(const Image& image) {
-    double sum = 0.0;
-    for (std::size_t i = 0; i < image.pixel_count(); ++i)
-        sum +=
-            luminance(Rgb(image.pixels[3 * i], image.pixels[3 * i + 1], image.pixels[3 * i + 2]));
-    return sum / static_cast<double>(image.pixel_count());
-}
-
 TEST(Pssmlt, ConvergesToThePathTracersImageOnASmallCornellBox) {
     const Scene scene = test::scene_from_xml(test::cornell_box_xml(24));
     // Reference: the path tracer at 4096 spp (seed 1). Its own relMSE is about 0.0030 * 64 / 4096
@@ -43,10 +35,11 @@ TEST(Pssmlt, ConvergesToThePathTracersImageOnASmallCornellBox) {
 
     // The image mean is b up to the chain's noise; b is a mean of 200k independent samples,
     // so it must agree with the path tracer's image mean within 4 of its standard errors.
-    const double pt_mean = mean_luminance(reference.image);
+    const double pt_mean = test::mean_luminance(reference.image);
     EXPECT_NEAR(s.b, pt_mean, 4.0 * s.b_standard_error);
     EXPECT_NEAR(s.b_independent, pt_mean, 4.0 * s.b_independent_standard_error);
-    EXPECT_NEAR(mean_luminance(out.image), pt_mean, 4.0 * s.b_standard_error + 0.01 * pt_mean);
+    EXPECT_NEAR(test::mean_luminance(out.image), pt_mean,
+                4.0 * s.b_standard_error + 0.01 * pt_mean);
 
     // Per-pixel agreement. Measured with these seeds: relMSE 0.0025 (PSSMLT's error at 1024
     // mutations per pixel on this scene, dominated by correlated chain noise); the bound of

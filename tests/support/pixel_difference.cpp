@@ -47,13 +47,14 @@ MeanEstimate gdpt_pixel_difference(const Scene& scene, const mlt::GdptSettings& 
                                                    static_cast<std::uint64_t>(s)));
             const Vec2f jitter = stream.next_2d();
             const NeighbourLink link{Vec2i(side == 0 ? 1 : -1, 0), 0, side == 0};
-            Rgb difference = Rgb::Zero();
+            mlt::LinkEstimate estimate;
             mlt::sample_gradients(scene,
                                   Vec2f(static_cast<float>(xi + side) + jitter.x(),
                                         static_cast<float>(y) + jitter.y()),
-                                  stream, settings.path, settings.shift, {&link, 1},
-                                  {&difference, 1}, counters, shifts);
-            d += side == 0 ? luminance(difference) : -luminance(difference);
+                                  stream, settings.path, settings.shift, {&link, 1}, {&estimate, 1},
+                                  counters, shifts);
+            const float difference = luminance(estimate.difference());
+            d += side == 0 ? difference : -difference;
         }
         acc.add(d);
     }

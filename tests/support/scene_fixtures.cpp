@@ -84,4 +84,12 @@ void expect_image_mean(const Image& image, const Rgb& expected, double relative_
     }
 }
 
+double mean_luminance(const Image& image) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < image.pixel_count(); ++i)
+        sum +=
+            luminance(Rgb(image.pixels[3 * i], image.pixels[3 * i + 1], image.pixels[3 * i + 2]));
+    return sum / static_cast<double>(image.pixel_count());
+}
+
 }  // namespace gdmlt::test

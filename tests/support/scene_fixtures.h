@@ -25,6 +25,9 @@ struct PixelStatistics {
 };
 PixelStatistics pixel_statistics(const std::vector<float>& rgb, int channel);
 
+/// Mean luminance of an RGB image.
+double mean_luminance(const Image& image);
+
 /// The furnace tests' render: path tracer, unbounded depth, Russian roulette from depth 5.
 RenderOutput render_unbounded(const Scene& scene, int spp, std::uint64_t seed);
 
