@@ -34,7 +34,7 @@ SurfacePoint trace_surface(const Scene& scene, const Vec3d& origin, const Vec3d&
 /// shading frame, such that the vertex's constraint holds (constraints.h). Fails with
 /// TotalInternalReflection, or LeftManifold when the directions fall on sides of the geometric
 /// and shading normals that contradict each other or the scattering type (light leaks through
-/// shading normals are rejected as in Mitsuba's propagation, notes 4.7).
+/// shading normals are rejected as in Mitsuba's propagation and G-PT's strictNormals).
 struct ScatterOutcome {
     Vec3d w_o = Vec3d::Zero();
     WalkFailure failure = WalkFailure::None;

@@ -36,7 +36,8 @@ struct ChainVertex {
     double eta = 1.0;
     bool reflection = true;
     /// Side of the previous vertex w.r.t. n_geometric (true: the normal's side). A walk or a
-    /// projection may not change it (a chain cannot switch sides, sec. 5.9 of the notes).
+    /// projection may not change it (a chain cannot switch sides; Jakob and Marschner 2012, sec.
+    /// 4).
     bool previous_on_front = true;
     /// Delta: the half vector is the normal (slope 0). Glossy: the vertex keeps the slope of its
     /// generalized half vector (`half_vector_slope`), an "offset manifold" (Jakob & Marschner

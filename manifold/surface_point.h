@@ -5,8 +5,8 @@
 // Why a second copy of what Shape::interaction_at computes: the core keeps geometry in float
 // (Embree), but a Newton walk that should converge to 1e-9 of the chain's size, and the finite-
 // difference tests of its Jacobians, need positions, normals and their derivatives in double
-// (DESIGN.md, "Precision and robustness"). The float accelerator only tells us which primitive a
-// ray hits; refine_hit() then intersects that primitive again in double. The formulas mirror
+// (the precision policy of core/math/types.h). The float accelerator only tells us which primitive
+// a ray hits; refine_hit() then intersects that primitive again in double. The formulas mirror
 // core/geometry/shape.cpp (same parametrisation, same orientation rules) so that surface_param
 // and the shading frame agree with the float SurfaceInteraction up to float round-off.
 #include <array>

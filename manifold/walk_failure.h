@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
-// Why a manifold walk, a chain projection or a chain construction failed (DESIGN.md: a failed
+// Why a manifold walk, a chain projection or a chain construction failed (a failed
 // walk returns a named reason that stats count, never a NaN). The names follow the failure
-// taxonomy of the notes (algorithms.md, 5.10).
+// counters of Mitsuba 0.6's manifold walk (Jakob and Marschner 2012, sec. 4-5).
 #include <cstddef>
 #include <cstdint>
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
 // The chain runner: everything a primary-sample-space Metropolis integrator does apart from
-// evaluating a state (DESIGN.md, "Shared machinery"). PSSMLT and GDMLT are ChainTargets; the
+// evaluating a state. PSSMLT and GDMLT are ChainTargets; the
 // runner owns the bootstrap (normalisation b and start states proportional to the target,
 // Kelemen et al. 2002, sec. 5), the chains in deterministic rounds, the time budget and Ctrl-C,
 // Kelemen's or Veach's splat weights, and per-chain statistics. Tungsten's Kelemen tracer with

@@ -63,7 +63,7 @@ void PrimarySampleVector::ensure_ready(std::size_t index) {
         // same shape with both sizes scaled by sqrt(n), the spread of n steps. Any symmetric
         // kernel keeps detailed balance (the proposal stays T(x->y) = T(y->x) coordinate by
         // coordinate), and this bounds the cost of stale deep coordinates, which otherwise
-        // dominate the chain's run time (algorithms.md 1.3, "Delicate").
+        // dominate the chain's run time (Kelemen et al. 2002, sec. 4, lazy evaluation).
         const double s2 = index < 2 ? image_s2_[index] : settings_.s2;
         const std::int64_t missed = iteration_ - c.modified;
         if (missed <= kExactCatchUp) {

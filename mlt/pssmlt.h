@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
 // Primary sample space MLT (Kelemen et al. 2002) on the path tracer's path sampler: the
-// baseline and correctness oracle for the gradient-domain chain. See
-// ../shared/notes/algorithms.md, section 1.
+// baseline and correctness oracle for the gradient-domain chain. See also
+// Veach 1997, ch. 11 (expected values) and pbrt-v4's MLTIntegrator.
 #include <atomic>
 #include <cstdint>
 #include <functional>

@@ -38,8 +38,8 @@ ReconstructResult solve_cv(const ReconstructInput& input, const ReconstructConfi
     // v scales Var(p) into the variance of the current iterate x^k. x^0 = p, so v_0 = 1; each
     // iteration averages the pixel with about 4 neighbour estimates, dividing the variance by
     // ~5 at first and by less as the estimates become correlated: the course code's model
-    // v_k = 1 / prod_{m<k} (1.01 + 4 * 0.5^m) (algorithms.md 6.3; there the product starts one
-    // step earlier, which would discount even the untouched primal).
+    // v_k = 1 / prod_{m<k} (1.01 + 4 * 0.5^m) (Rousselle et al. 2016's public course code; there
+    // the product starts one step earlier, which would discount even the untouched primal).
     double v = 1.0;
     for (int k = 0; k < config.cv_iterations; ++k) {
         const double* xo = x.data();

@@ -2,10 +2,10 @@
 #pragma once
 // PixelGraph: nodes are the pixels of a width x height image, each edge (from, to) carries an
 // observed RGB difference estimating I(to) - I(from), an optional weight and an optional variance.
-// The 4-neighbour lattice is one such graph; ADAP's neighbours (algorithms.md 3.3) are another.
-// Section 3.4 of the notes: replacing the lattice D_x, D_y by a general signed incidence matrix
-// D (row e: -1 at from, +1 at to) leaves every reconstruction of section 6 unchanged, with
-// L = D^T W D a weighted graph Laplacian.
+// The 4-neighbour lattice is one such graph; ADAP's neighbours (Manzi et al. 2014) are another.
+// Replacing the lattice D_x, D_y by a general signed incidence matrix
+// D (row e: -1 at from, +1 at to) leaves every screened Poisson and control-variate reconstruction
+// unchanged, with L = D^T W D a weighted graph Laplacian.
 #include <cstddef>
 #include <cstdint>
 #include <vector>

@@ -4,7 +4,7 @@
 // al. 2015 eq. 11):
 //     min_x  sum_e w_e |(Dx - g)_e|_2 + alpha sum_i |x_i - p_i|_2      (RGB 2-norm per row)
 // by iteratively reweighted least squares around the L2 solver, following the schedule of the
-// NVIDIA solver shipped with the G-PT code (algorithms.md 6.2): iteration 0 is the plain L2
+// NVIDIA solver shipped with the G-PT code (Kettunen et al. 2015): iteration 0 is the plain L2
 // solve, iteration k >= 1 reweights every residual row by 1 / (|e_r| + rho_k),
 // rho_k = rho0 * gamma^(k-1), weights rescaled to mean 1, and warm-starts CG from the previous x.
 // Robust to outlier differences: an outlier edge's weight falls as 1/|residual|, so it pulls

@@ -24,8 +24,9 @@ struct ReconstructConfig {
     Method method = Method::l1;
 
     /// Screening weight of the primal term: the data term is alpha^2 * |x - p|^2 (L2) or
-    /// alpha * |x - p| (L1). 0.2 is the G-PT / NVIDIA solver default (algorithms.md 6.1: "alpha =
-    /// 0.2 means a data-term weight alpha^2 = 0.04 relative to gradients"). Must be finite, >= 0.
+    /// alpha * |x - p| (L1). 0.2 is the G-PT / NVIDIA solver default (Kettunen et al. 2015:
+    /// alpha = 0.2 means a data-term weight alpha^2 = 0.04 relative to gradients). Must be finite,
+    /// >= 0.
     double alpha = 0.2;
 
     /// Start CG from the primal (true; Lehtinen 2013 / the NVIDIA solver do) or from zero (tests
@@ -42,7 +43,7 @@ struct ReconstructConfig {
 
     // --- L1: iteratively reweighted least squares around the L2 solver ------------------------
     /// Outer iterations; 20 with rho0 = 0.05, gamma = 0.5 is the NVIDIA solver's default L1D
-    /// preset (algorithms.md 6.2).
+    /// preset (Kettunen et al. 2015).
     int irls_iterations = 20;
     double irls_rho0 = 0.05;
     double irls_gamma = 0.5;
@@ -56,7 +57,8 @@ struct ReconstructConfig {
     double l1_objective_tolerance = 1e-4;
 
     // --- Weighted control variates (Rousselle, Jarosz, Novak 2016) ----------------------------
-    /// Jacobi-style iterations; 50 is the default of the public course code (algorithms.md 6.3).
+    /// Jacobi-style iterations; 50 is the default of the public course code (Rousselle et al.
+    /// 2016).
     int cv_iterations = 50;
     /// Regulariser of the inverse-variance weights, 1e-4 as in the course code.
     double cv_epsilon = 1e-4;

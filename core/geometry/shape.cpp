@@ -36,7 +36,8 @@ void fill_mesh_interaction(const TriangleMesh& mesh, const Vec3f& n_face, std::u
     si.primitive = triangle;
     si.surface_param = b;
     // Rebuilt from barycentrics rather than o + t*d: the error is then relative to the
-    // triangle's coordinates, not to the ray length (DESIGN.md, precision).
+    // triangle's coordinates, not to the ray length (Pharr, Jakob, Humphreys, PBR 4th ed.,
+    // sec. 6.8).
     si.p = b0 * p0 + b.x() * p1 + b.y() * p2;
     si.dp_du = p1 - p0;
     si.dp_dv = p2 - p0;

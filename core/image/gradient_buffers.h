@@ -1,15 +1,15 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
 // GradientBuffers: what a gradient-domain integrator (G-PT, GDMLT) hands to reconstruction.
-// Plain data owned by core: integrators in mlt/ fill it, reconstruct/ reads it (DESIGN.md,
-// "Data flow"), so neither module needs the other.
+// Plain data owned by core: integrators in mlt/ fill it, reconstruct/ reads it,
+// so neither module needs the other.
 //
 // Sign convention (the same everywhere in gdmlt): a difference on the edge from pixel a to
 // pixel b estimates I(b) - I(a). For the lattice layers that means
 //     dx(x, y) ~ I(x + 1, y) - I(x, y)     (last column unused, keep it 0)
 //     dy(x, y) ~ I(x, y + 1) - I(x, y)     (last row unused, keep it 0)
 // which is the forward-difference operator D of Lehtinen et al. 2013 and of the screened Poisson
-// problem (algorithms.md section 6.1). Pixel (x, y) has index y * width + x.
+// problem (Lehtinen et al. 2013; Kettunen et al. 2015). Pixel (x, y) has index y * width + x.
 #include <cstdint>
 #include <map>
 #include <string>
@@ -19,7 +19,7 @@
 
 namespace gdmlt {
 
-/// An edge beyond the 4-neighbour lattice (ADAP, algorithms.md 3.3): pixel indices y*width+x.
+/// An edge beyond the 4-neighbour lattice (ADAP, Manzi et al. 2014): pixel indices y*width+x.
 /// Its difference estimates I(to) - I(from).
 struct GradientEdge {
     std::int32_t from = -1;

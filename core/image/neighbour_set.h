@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
-// NeighbourSet: which pixels each pixel takes gradients against (DESIGN.md, "Neighbour set").
+// NeighbourSet: which pixels each pixel takes gradients against.
 // A set of undirected edges between the pixels of a width x height image, and per pixel the
 // list of its links (the offset to the other end and the edge it belongs to). The 4-neighbour
 // lattice of G-PT and GDMLT (Lehtinen et al. 2013) is one instance; ADAP's feature-selected

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
 // Basic value types. Geometry is float (Embree is single precision); solvers, Jacobians and
-// accumulation use double (see DESIGN.md, "Precision and robustness").
+// accumulation use double (the project's precision policy).
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>

@@ -19,7 +19,8 @@
 
 namespace gdmlt {
 
-/// Which effects the scene calls for (DESIGN.md, "Simulate only the effects a scene calls for").
+/// Which effects the scene calls for (integrators switch machinery off from it: simulate only what
+/// the scene calls for).
 struct SceneFeatures {
     bool has_diffuse = false;
     bool has_glossy = false;
