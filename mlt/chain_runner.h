@@ -14,11 +14,13 @@
 //     integral of g du = E_chain[ g(u) b / f(u) ],
 // so each slot's accumulated splats divided by the number of mutations N estimate the integral
 // of that slot's g. Integrators turn that into pixel values (PSSMLT: times the pixel count).
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <functional>
 #include <vector>
 
+#include "core/camera/camera.h"
 #include "core/math/types.h"
 #include "core/path/path_sampler.h"
 #include "core/sampling/sample_stream.h"
@@ -50,6 +52,28 @@ struct ChainState {
         splats.clear();
     }
 };
+
+/// Where a state's first two primary samples put it on the film (the convention of every
+/// ChainTarget): the crop-window pixel and its index y * crop_width + x, and the full-film raster
+/// position a camera ray goes through.
+struct FilmSample {
+    int x = 0, y = 0;
+    std::size_t pixel = 0;
+    Vec2f film_position = Vec2f::Zero();
+};
+inline FilmSample film_sample(const Film& film, SampleStream& stream) {
+    const Vec2f u = stream.next_2d();
+    const float fx = u.x() * static_cast<float>(film.crop_width);
+    const float fy = u.y() * static_cast<float>(film.crop_height);
+    FilmSample s;
+    s.x = std::min(static_cast<int>(fx), film.crop_width - 1);
+    s.y = std::min(static_cast<int>(fy), film.crop_height - 1);
+    s.pixel = static_cast<std::size_t>(s.y) * static_cast<std::size_t>(film.crop_width) +
+              static_cast<std::size_t>(s.x);
+    s.film_position = Vec2f(static_cast<float>(film.crop_offset_x) + fx,
+                            static_cast<float>(film.crop_offset_y) + fy);
+    return s;
+}
 
 /// Work counters a target's evaluations add to.
 struct ChainCounters {

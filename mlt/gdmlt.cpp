@@ -38,13 +38,8 @@ class GradientTarget final : public ChainTarget {
     std::size_t density_slot_count() const override { return neighbours_.pixel_count(); }
 
     void evaluate(SampleStream& stream, ChainState& state, ChainCounters& counters) const override {
-        const Film& film = scene_.camera().film();
-        const Vec2f u = stream.next_2d();
-        const float fx = u.x() * static_cast<float>(film.crop_width);
-        const float fy = u.y() * static_cast<float>(film.crop_height);
-        const int x = std::min(static_cast<int>(fx), film.crop_width - 1);
-        const int y = std::min(static_cast<int>(fy), film.crop_height - 1);
-        const std::size_t pixel = static_cast<std::size_t>(y) * film.crop_width + x;
+        const FilmSample where = film_sample(scene_.camera().film(), stream);
+        const std::size_t pixel = where.pixel;
         state.density_slot = static_cast<std::int32_t>(pixel);
 
         const std::span<const NeighbourLink> links = neighbours_.links(pixel);
@@ -57,11 +52,8 @@ class GradientTarget final : public ChainTarget {
             estimates = large;
         }
         const GradientSample g =
-            sample_gradients(scene_,
-                             Vec2f(static_cast<float>(film.crop_offset_x) + fx,
-                                   static_cast<float>(film.crop_offset_y) + fy),
-                             stream, settings_.path, settings_.shift, links, estimates,
-                             counters.paths, counters.shifts);
+            sample_gradients(scene_, where.film_position, stream, settings_.path, settings_.shift,
+                             links, estimates, counters.paths, counters.shifts);
 
         bool finite = is_finite(g.primal);
         double target = settings_.primal_weight * static_cast<double>(luminance(g.primal));

@@ -29,15 +29,8 @@ class PathTracerTarget final : public ChainTarget {
     }
 
     void evaluate(SampleStream& stream, ChainState& state, ChainCounters& counters) const override {
-        const Film& film = scene_.camera().film();
-        const Vec2f u = stream.next_2d();
-        const float fx = u.x() * static_cast<float>(film.crop_width);
-        const float fy = u.y() * static_cast<float>(film.crop_height);
-        const int x = std::min(static_cast<int>(fx), film.crop_width - 1);
-        const int y = std::min(static_cast<int>(fy), film.crop_height - 1);
-        const Ray ray =
-            scene_.camera().generate_ray(Vec2f(static_cast<float>(film.crop_offset_x) + fx,
-                                               static_cast<float>(film.crop_offset_y) + fy));
+        const FilmSample where = film_sample(scene_.camera().film(), stream);
+        const Ray ray = scene_.camera().generate_ray(where.film_position);
         const Rgb radiance = sample_path_radiance(scene_, ray, stream, path_, counters.paths);
         const double lum = static_cast<double>(luminance(radiance));
         if (!is_finite(radiance) || !std::isfinite(lum)) {
@@ -46,9 +39,7 @@ class PathTracerTarget final : public ChainTarget {
         }
         if (!(lum > 0.0)) return;
         state.target = lum;
-        state.splats.push_back(
-            {static_cast<std::uint32_t>(static_cast<std::size_t>(y) * film.crop_width + x),
-             radiance});
+        state.splats.push_back({static_cast<std::uint32_t>(where.pixel), radiance});
     }
 
   private:
