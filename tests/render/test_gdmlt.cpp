@@ -156,11 +156,7 @@ TEST(Gdmlt, L2ReconstructionConvergesToThePathTracersImage) {
     // b*) must be within 1% plus 3 of b*'s standard errors of the reference's, and its relMSE
     // small.
     const Scene scene = test::scene_from_xml(test::cornell_box_xml(16, true));
-    RenderSettings pt;
-    pt.spp = 4096;
-    pt.seed = 1;
-    pt.path.max_depth = 8;
-    const RenderOutput reference = render_path(scene, pt);
+    const RenderOutput reference = test::reference_render(scene);
 
     mlt::GdmltSettings s = small_gdmlt(9, 1024);
     s.bootstrap_samples = 100000;

@@ -14,11 +14,7 @@ namespace {
 
 void check_against_path_tracer(bool glass, double primal_bound, double final_bound) {
     const Scene scene = test::scene_from_xml(test::cornell_box_xml(24, glass));
-    RenderSettings pt;
-    pt.spp = 4096;
-    pt.seed = 1;
-    pt.path.max_depth = 8;
-    const RenderOutput reference = render_path(scene, pt);
+    const RenderOutput reference = test::reference_render(scene);
 
     mlt::GdptSettings settings;
     settings.spp = 128;
@@ -67,11 +63,7 @@ TEST(Gdpt, NoHaloAroundALightSeenDirectly) {
     // not exceed the primal's. Checked to fail with the very direct light put back into the
     // primal and the gradients.
     const Scene scene = test::scene_from_xml(test::cornell_box_xml(32));
-    RenderSettings pt;
-    pt.spp = 4096;
-    pt.seed = 1;
-    pt.path.max_depth = 8;
-    const RenderOutput reference = render_path(scene, pt);
+    const RenderOutput reference = test::reference_render(scene);
     mlt::GdptSettings settings;
     settings.spp = 64;
     settings.seed = 5;
@@ -83,7 +75,7 @@ TEST(Gdpt, NoHaloAroundALightSeenDirectly) {
 
     // The light's outline from a render of the emitters alone (max_depth 1), independent of
     // how the integrator under test splits its layers.
-    RenderSettings emitters_only = pt;
+    RenderSettings emitters_only;
     emitters_only.spp = 16;
     emitters_only.path.max_depth = 1;
     const Image seen = render_path(scene, emitters_only).image;

@@ -15,11 +15,7 @@ TEST(Pssmlt, ConvergesToThePathTracersImageOnASmallCornellBox) {
     const Scene scene = test::scene_from_xml(test::cornell_box_xml(24));
     // Reference: the path tracer at 4096 spp (seed 1). Its own relMSE is about 0.0030 * 64 / 4096
     // ~ 5e-5 (cbox's measured error at 64 spp), negligible below.
-    RenderSettings pt;
-    pt.spp = 4096;
-    pt.seed = 1;
-    pt.path.max_depth = 8;
-    const RenderOutput reference = render_path(scene, pt);
+    const RenderOutput reference = test::reference_render(scene);
 
     mlt::PssmltSettings settings;
     settings.seed = 7;

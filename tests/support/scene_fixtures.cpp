@@ -84,6 +84,14 @@ void expect_image_mean(const Image& image, const Rgb& expected, double relative_
     }
 }
 
+RenderOutput reference_render(const Scene& scene) {
+    RenderSettings pt;
+    pt.spp = 4096;
+    pt.seed = 1;
+    pt.path.max_depth = 8;
+    return render_path(scene, pt);
+}
+
 double mean_luminance(const Image& image) {
     double sum = 0.0;
     for (std::size_t i = 0; i < image.pixel_count(); ++i)

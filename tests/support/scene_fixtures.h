@@ -25,6 +25,9 @@ struct PixelStatistics {
 };
 PixelStatistics pixel_statistics(const std::vector<float>& rgb, int channel);
 
+/// The render tests' reference: the path tracer at 4096 spp, seed 1, max_depth 8.
+RenderOutput reference_render(const Scene& scene);
+
 /// Mean luminance of an RGB image.
 double mean_luminance(const Image& image);
 
