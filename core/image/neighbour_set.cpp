@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <set>
 #include <stdexcept>
+#include <tuple>
 #include <utility>
 
 namespace gdmlt {
@@ -91,24 +92,62 @@ void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> diffe
     if (differences.size() != set.edges().size())
         throw std::invalid_argument("store_edge_differences: one difference per edge expected");
     const int w = set.width(), h = set.height();
-    buffers.dx = Image(w, h, 3);
-    buffers.dy = Image(w, h, 3);
+    // A lattice layer holds its direction only when the set has every edge of it: a zero in a
+    // layer means "difference 0", not "no edge" (ADAP drops some lattice edges).
+    std::size_t horizontal = 0, vertical = 0;
+    const auto unit_kind = [w](const GradientEdge& e) {
+        const std::int32_t lo = std::min(e.from, e.to), hi = std::max(e.from, e.to);
+        if (hi == lo + 1 && lo % w + 1 < w) return 1;
+        if (hi == lo + w) return 2;
+        return 0;
+    };
+    for (const GradientEdge& e : set.edges()) {
+        const int kind = unit_kind(e);
+        horizontal += kind == 1;
+        vertical += kind == 2;
+    }
+    const bool full_dx = w > 1 && horizontal == static_cast<std::size_t>(w - 1) * h;
+    const bool full_dy = h > 1 && vertical == static_cast<std::size_t>(h - 1) * w;
+    buffers.dx = full_dx ? Image(w, h, 3) : Image();
+    buffers.dy = full_dy ? Image(w, h, 3) : Image();
     buffers.extra_edges.clear();
     buffers.extra_differences.clear();
+    // Extra edges oriented from the smaller pixel index and ordered by offset (dy, dx), then by
+    // `from`: the order in which core/image/gradient_layers.h reads them back from an EXR, so that
+    // re-solving a file sees exactly the render's system.
+    std::vector<std::size_t> extra;
     for (std::size_t e = 0; e < set.edges().size(); ++e) {
         const GradientEdge& edge = set.edges()[e];
-        const int x = edge.from % w, y = edge.from / w;
-        Image* layer = edge.to == edge.from + 1 && x + 1 < w ? &buffers.dx
-                       : edge.to == edge.from + w            ? &buffers.dy
-                                                             : nullptr;
+        const int kind = unit_kind(edge);
+        Image* layer = kind == 1 && full_dx   ? &buffers.dx
+                       : kind == 2 && full_dy ? &buffers.dy
+                                              : nullptr;
+        if (!layer) {
+            extra.push_back(e);
+            continue;
+        }
+        const bool forward = edge.to > edge.from;
+        const std::int32_t from = forward ? edge.from : edge.to;
         for (int c = 0; c < 3; ++c) {
             const auto v = static_cast<float>(differences[e][c]);
-            if (layer)
-                (*layer)(x, y, c) = v;
-            else
-                buffers.extra_differences.push_back(v);
+            (*layer)(from % w, from / w, c) = forward ? v : -v;
         }
-        if (!layer) buffers.extra_edges.push_back(edge);
+    }
+    const auto key = [&](std::size_t e) {
+        const GradientEdge& edge = set.edges()[e];
+        const std::int32_t from = std::min(edge.from, edge.to), to = std::max(edge.from, edge.to);
+        return std::tuple(to / w - from / w, to % w - from % w, from);
+    };
+    std::sort(extra.begin(), extra.end(),
+              [&](std::size_t a, std::size_t b) { return key(a) < key(b); });
+    for (const std::size_t e : extra) {
+        const GradientEdge& edge = set.edges()[e];
+        const bool forward = edge.to > edge.from;
+        buffers.extra_edges.push_back(forward ? edge : GradientEdge{edge.to, edge.from});
+        for (int c = 0; c < 3; ++c) {
+            const auto v = static_cast<float>(differences[e][c]);
+            buffers.extra_differences.push_back(forward ? v : -v);
+        }
     }
 }
 

@@ -72,8 +72,10 @@ class NeighbourSet {
 };
 
 /// Writes per-edge differences (RGB, I(to) - I(from), in the order of `set.edges()`) into the
-/// buffers: an edge (x,y)->(x+1,y) goes to dx(x,y), (x,y)->(x,y+1) to dy(x,y), every other edge
-/// to extra_edges / extra_differences. dx and dy are allocated (zero) at the set's size.
+/// buffers: when the set has every edge (x,y)->(x+1,y), they fill dx(x,y) (likewise dy);
+/// every other edge goes to extra_edges / extra_differences, oriented from the smaller pixel
+/// index and ordered by offset (dy, dx), then by that pixel. dx or dy stays empty when the set
+/// lacks some edge of its direction (a 0 in a layer would read as "no change", not "no edge").
 void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> differences,
                             GradientBuffers& buffers);
 

@@ -51,27 +51,52 @@ TEST(NeighbourSet, RejectsEdgesOutOfRangeSelfLoopsAndRepeats) {
     EXPECT_NO_THROW(NeighbourSet::from_edges(2, 2, {{0, 3}, {1, 2}}));
 }
 
-TEST(NeighbourSet, StoresLatticeEdgesInDxDyAndOthersAsExtraEdges) {
-    // 3x2: (0,0)->(1,0) is dx(0,0); (1,0)->(1,1) is dy(1,0); (0,0)->(2,1) and the reversed
-    // lattice pair (2,0)->(1,0) are extra edges (the latter keeps its own orientation).
-    const NeighbourSet set = NeighbourSet::from_edges(3, 2, {{0, 1}, {1, 4}, {0, 5}, {2, 1}});
-    const std::vector<RgbD> differences = {RgbD(1, 2, 3), RgbD(4, 5, 6), RgbD(7, 8, 9),
-                                           RgbD(10, 11, 12)};
+TEST(NeighbourSet, StoresAFullLatticeInDxDyAndOtherEdgesInCanonicalOrder) {
+    // 3x2 lattice (edges 0..6, listed with the horizontal (1,0)->(2,0) reversed) plus two
+    // extra edges listed out of order and one of them reversed: (2,1)->(0,0) = {5, 0} with
+    // offset (-2,-1) and (0,0)->(1,1) = {0, 4} with offset (1,1).
+    std::vector<GradientEdge> edges = {{0, 1}, {2, 1}, {3, 4}, {4, 5}, {0, 3},
+                                       {1, 4}, {2, 5}, {5, 0}, {0, 4}};
+    const NeighbourSet set = NeighbourSet::from_edges(3, 2, edges);
+    std::vector<RgbD> differences;
+    for (int e = 0; e < 9; ++e) differences.emplace_back(e, 10 * e, 100 * e);
     GradientBuffers b;
     store_edge_differences(set, differences, b);
-    EXPECT_EQ(b.dx(0, 0, 2), 3.f);
-    EXPECT_EQ(b.dy(1, 0, 0), 4.f);
-    float dx_sum = 0.f, dy_sum = 0.f;
-    for (float v : b.dx.pixels) dx_sum += v;
-    for (float v : b.dy.pixels) dy_sum += v;
-    EXPECT_EQ(dx_sum, 6.f);
-    EXPECT_EQ(dy_sum, 15.f);
+    ASSERT_EQ(b.dx.width, 3);
+    ASSERT_EQ(b.dy.width, 3);
+    EXPECT_EQ(b.dx(0, 0, 0), 0.f);
+    EXPECT_EQ(b.dx(1, 0, 1), -10.f);  // {2, 1} estimates I(1) - I(2): dx(1,0) is its negative
+    EXPECT_EQ(b.dx(1, 1, 2), 300.f);
+    EXPECT_EQ(b.dy(2, 0, 0), 6.f);
+    // Extras oriented from the smaller index, by offset (dy, dx): (0,0)->(2,1) has offset
+    // (2, 1), (0,0)->(1,1) has (1, 1), so the latter comes first.
     ASSERT_EQ(b.extra_edges.size(), 2u);
-    EXPECT_EQ(b.extra_edges[0], (GradientEdge{0, 5}));
-    EXPECT_EQ(b.extra_edges[1], (GradientEdge{2, 1}));
+    EXPECT_EQ(b.extra_edges[0], (GradientEdge{0, 4}));
+    EXPECT_EQ(b.extra_edges[1], (GradientEdge{0, 5}));
     ASSERT_EQ(b.extra_differences.size(), 6u);
-    EXPECT_EQ(b.extra_differences[0], 7.f);
-    EXPECT_EQ(b.extra_differences[5], 12.f);
+    EXPECT_EQ(b.extra_differences[0], 8.f);
+    EXPECT_EQ(b.extra_differences[3], -7.f);  // {5, 0} reversed
+    EXPECT_EQ(b.extra_differences[5], -700.f);
+}
+
+TEST(NeighbourSet, AnIncompleteLatticeDirectionIsStoredAsExtraEdgesSoNoMissingEdgeReadsAsZero) {
+    // 3x2 without the horizontal edge (1,1)->(2,1): a zero there in dx would tell the solver
+    // "these pixels are equal". The horizontal edges become extra edges; dy is complete.
+    const NeighbourSet set =
+        NeighbourSet::from_edges(3, 2, {{2, 5}, {0, 1}, {1, 2}, {3, 4}, {0, 3}, {1, 4}});
+    std::vector<RgbD> differences;
+    for (int e = 0; e < 6; ++e) differences.emplace_back(e, e, e);
+    GradientBuffers b;
+    store_edge_differences(set, differences, b);
+    EXPECT_TRUE(b.dx.pixels.empty());
+    ASSERT_EQ(b.dy.width, 3);
+    EXPECT_EQ(b.dy(2, 0, 0), 0.f);
+    EXPECT_EQ(b.dy(1, 0, 0), 5.f);
+    // Horizontal edges by `from`.
+    const std::vector<GradientEdge> expected = {{0, 1}, {1, 2}, {3, 4}};
+    EXPECT_EQ(b.extra_edges, expected);
+    const std::vector<float> expected_differences = {1, 1, 1, 2, 2, 2, 3, 3, 3};
+    EXPECT_EQ(b.extra_differences, expected_differences);
 }
 
 }  // namespace

@@ -37,7 +37,7 @@ Path sample_interior_camera_path(const Scene& scene, std::uint64_t key, PathCoun
 
 MeanEstimate gdpt_pixel_difference(const Scene& scene, const mlt::GdptSettings& settings, int xi,
                                    int y, int samples, std::uint64_t seed,
-                                   manifold::ShiftCounters& shifts) {
+                                   manifold::ShiftCounters& shifts, const Vec2i& offset) {
     PathCounters counters;
     Accumulator acc;
     for (int s = 0; s < samples; ++s) {
@@ -46,11 +46,12 @@ MeanEstimate gdpt_pixel_difference(const Scene& scene, const mlt::GdptSettings& 
             IndependentStream stream(derive_stream(seed, static_cast<std::uint64_t>(side),
                                                    static_cast<std::uint64_t>(s)));
             const Vec2f jitter = stream.next_2d();
-            const NeighbourLink link{Vec2i(side == 0 ? 1 : -1, 0), 0, side == 0};
+            const NeighbourLink link{side == 0 ? offset : Vec2i(-offset), 0, side == 0};
+            const Vec2i pixel = Vec2i(xi, y) + (side == 0 ? Vec2i::Zero() : offset);
             mlt::LinkEstimate estimate;
             mlt::sample_gradients(scene,
-                                  Vec2f(static_cast<float>(xi + side) + jitter.x(),
-                                        static_cast<float>(y) + jitter.y()),
+                                  Vec2f(static_cast<float>(pixel.x()) + jitter.x(),
+                                        static_cast<float>(pixel.y()) + jitter.y()),
                                   stream, settings.path, settings.shift, {&link, 1}, {&estimate, 1},
                                   counters, shifts);
             const float difference = luminance(estimate.difference());

@@ -19,12 +19,13 @@ struct MeanEstimate {
 /// border, so that shifts to every neighbour stay on the film. Stream `key`.
 Path sample_interior_camera_path(const Scene& scene, std::uint64_t key, PathCounters& counters);
 
-/// GDPT's estimate of luminance I(xi + 1, y) - I(xi, y): per iteration one base sample in each
-/// pixel (+x shift from xi, -x shift from xi + 1, as GDPT combines them). Streams (seed, side,
-/// iteration).
+/// GDPT's estimate of luminance I((xi, y) + offset) - I(xi, y): per iteration one base sample
+/// in each pixel (a shift by +offset from (xi, y), by -offset from the other end, as GDPT
+/// combines them). Streams (seed, side, iteration).
 MeanEstimate gdpt_pixel_difference(const Scene& scene, const mlt::GdptSettings& settings, int xi,
                                    int y, int samples, std::uint64_t seed,
-                                   manifold::ShiftCounters& shifts);
+                                   manifold::ShiftCounters& shifts,
+                                   const Vec2i& offset = Vec2i(1, 0));
 
 /// The path tracer's luminance of pixel (x, y). Streams (seed, x, iteration).
 MeanEstimate path_traced_pixel(const Scene& scene, const PathSamplerSettings& settings, int x,
