@@ -19,6 +19,7 @@
 #include "cli/reconstruct_command.h"
 #include "core/image/gradient_layers.h"
 #include "core/image/image_io.h"
+#include "core/render/feature_pass.h"
 #include "core/render/render_path.h"
 #include "core/scene/scene.h"
 #include "core/scene/scene_desc.h"
@@ -72,6 +73,9 @@ struct RenderOptions {
     std::optional<int> very_direct_samples;
     std::optional<double> bootstrap_error;
     std::optional<bool> primal_from_offsets;
+    // Feature pass (ADAP's auxiliary images), with any integrator.
+    bool features = false;
+    int feature_spp = 4;
 };
 
 /// What an integrator hands back to the CLI: the image, its statistics, whether it is partial.
@@ -445,12 +449,42 @@ int run_render(const RenderOptions& options) {
 
     g_interrupted.store(false);
     std::signal(SIGINT, on_sigint);
+    // The feature pass runs first, so that a later adaptive integrator can read its images;
+    // it derives its own streams from the render's seed (feature_pass.h).
+    std::optional<FeatureImages> features;
+    double feature_pass_s = 0.0;
+    if (options.features) {
+        FeatureSettings fs;
+        fs.spp = options.feature_spp;
+        fs.seed = options.seed.value_or(scene.sampler().seed);
+        const auto start = std::chrono::steady_clock::now();
+        features = render_features(scene, fs, &g_interrupted);
+        feature_pass_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        if (!options.quiet)
+            std::cerr << "gdmlt: feature pass: " << features->spp << " spp in " << feature_pass_s
+                      << " s\n";
+    }
     ProgressBar bar(isatty(STDERR_FILENO) != 0, options.quiet);
     IntegratorResult result = integrator == "pssmlt"  ? run_pssmlt(scene, options, bar)
                               : integrator == "gdpt"  ? run_gdpt(scene, options, bar)
                               : integrator == "gdmlt" ? run_gdmlt(scene, options, bar)
                                                       : run_path(scene, options, bar);
     std::signal(SIGINT, SIG_DFL);
+    if (features) {
+        // Interrupted during the feature pass: the render stopped at once too, and both are
+        // partial.
+        result.partial = result.partial || features->interrupted;
+        result.extra_layers.push_back(ExrLayer{"albedo", {"R", "G", "B"}, features->albedo});
+        result.extra_layers.push_back(ExrLayer{"normal", {"X", "Y", "Z"}, features->normal});
+        result.extra_layers.push_back(ExrLayer{"depth", {"Z"}, features->depth});
+        result.extra_layers.push_back(ExrLayer{"shape_id", {"Y"}, features->shape_id});
+        result.extra_layers.push_back(
+            ExrLayer{"albedo_variance", {"Y"}, features->albedo_variance});
+        result.extra_layers.push_back(
+            ExrLayer{"normal_variance", {"Y"}, features->normal_variance});
+        result.extra_layers.push_back(ExrLayer{"depth_variance", {"Y"}, features->depth_variance});
+    }
     bar.finish(result.partial);
 
     json config = result.config;
@@ -458,7 +492,14 @@ int run_render(const RenderOptions& options) {
     config["threads"] = threads;
     config["defines"] = options.defines;
     config["version"] = kVersion;
+    config["features"] = options.features;
+    config["feature_spp"] = options.features ? json(options.feature_spp) : json(nullptr);
     json stats = result.stats;
+    if (features) {
+        stats["feature_pass_s"] = feature_pass_s;
+        stats["feature_spp_completed"] = features->spp;
+        stats["feature_rays"] = path_counters_json(features->counters, feature_pass_s);
+    }
     stats["config"] = config;
     stats["partial"] = result.partial;
     stats["scene"] = {{"features", features_json(scene.features())}, {"counts", scene.counts()}};
@@ -599,6 +640,15 @@ int main(int argc, char** argv) {
     render_cmd->add_option("--bootstrap-error", render.bootstrap_error,
                            "GDMLT: grow the bootstrap until b's relative standard error is "
                            "below this (0.01)");
+
+    CLI::Option* features_flag = render_cmd->add_flag(
+        "--features", render.features,
+        "Also render ADAP's feature images (albedo, normal, depth, shape_id and their "
+        "variances) into layers of the EXR, before the render");
+    render_cmd
+        ->add_option("--feature-spp", render.feature_spp, "Samples per pixel of --features (4)")
+        ->check(CLI::PositiveNumber)
+        ->needs(features_flag);
 
     std::string info_scene;
     std::vector<std::string> info_defines;
