@@ -19,6 +19,7 @@
 #include "cli/reconstruct_command.h"
 #include "core/image/gradient_layers.h"
 #include "core/image/image_io.h"
+#include "core/render/adap_selection.h"
 #include "core/render/feature_pass.h"
 #include "core/render/render_path.h"
 #include "core/scene/scene.h"
@@ -75,7 +76,21 @@ struct RenderOptions {
     std::optional<bool> primal_from_offsets;
     // Feature pass (ADAP's auxiliary images), with any integrator.
     bool features = false;
-    int feature_spp = 4;
+    std::optional<int> feature_spp;
+    // Neighbours of gdpt and gdmlt: lattice or adap (core/render/adap_selection.h).
+    std::string neighbours;
+    std::optional<int> adap_k;
+    std::optional<int> adap_window;
+    std::vector<float> adap_sigma;  // albedo, normal, depth, shape
+    bool adap_mutual = false;
+};
+
+/// What runs before a gradient-domain integrator: the neighbour graph (null: the lattice) and
+/// the seconds the feature pass and selection took, which a time budget includes.
+struct NeighbourSetup {
+    const NeighbourSet* adap = nullptr;
+    double seconds = 0.0;
+    json config;  // the neighbour settings, for the EXR header and stats
 };
 
 /// What an integrator hands back to the CLI: the image, its statistics, whether it is partial.
@@ -324,9 +339,17 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
     return r;
 }
 
-IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
+/// The time left for sampling once the neighbour setup has run (a budget covers the whole
+/// render, so that lattice and adap compare at equal time).
+double remaining_budget(double time_s, const NeighbourSetup& setup) {
+    return time_s > 0.0 ? std::max(time_s - setup.seconds, 1e-3) : 0.0;
+}
+
+IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options,
+                          const NeighbourSetup& setup, ProgressBar& bar) {
     mlt::GdptSettings settings;
     apply_sample_budget(scene, options, settings);
+    settings.time_budget_s = remaining_budget(settings.time_budget_s, setup);
     const std::string shift = options.shift.empty() ? "auto" : options.shift;
     settings.shift = parse_shift(shift);
     const reconstruct::ReconstructConfig rc = reconstruct_config(options);
@@ -339,19 +362,22 @@ IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, Prog
         {"time_budget_s", settings.time_budget_s},
         {"seed", settings.seed},
         {"shift", shift},
+        {"neighbours", setup.config},
         {"reconstruct", reconstruct::to_string(rc.method)},
         {"alpha", rc.alpha},
         {"coarse_radius", rc.coarse_radius},
         {"max_depth", settings.path.max_depth},
         {"hide_emitters", settings.path.hide_emitters}};
+    const Film& film = scene.camera().film();
     const mlt::GdptOutput out = mlt::render_gdpt(
-        scene, settings, &g_interrupted,
-        [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
+        scene, settings,
+        setup.adap ? *setup.adap : NeighbourSet::lattice(film.crop_width, film.crop_height),
+        &g_interrupted, [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
     const double solve_s = solve_gradient_render(out.buffers, rc, r);
     const mlt::GdptStats& s = out.stats;
     r.partial = s.interrupted;
     r.stats = {
-        {"render_s", s.render_s + solve_s},
+        {"render_s", setup.seconds + s.render_s + solve_s},
         {"sampling_s", s.render_s},
         {"reconstruct_s", solve_s},
         {"samples", s.samples},
@@ -363,7 +389,8 @@ IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, Prog
     return r;
 }
 
-IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
+IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
+                           const NeighbourSetup& setup, ProgressBar& bar) {
     mlt::GdmltSettings settings = mlt::gdmlt_settings_from_scene(scene.integrator());
     apply_mutation_options(options, settings.mutation, settings.chains, settings.bootstrap_samples);
     if (options.mpp) settings.mutations_per_pixel = *options.mpp;
@@ -373,7 +400,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options, Pro
     if (options.very_direct_samples) settings.very_direct_samples = *options.very_direct_samples;
     if (options.bootstrap_error) settings.bootstrap_relative_error = *options.bootstrap_error;
     if (options.primal_from_offsets) settings.primal_from_offsets = *options.primal_from_offsets;
-    settings.time_budget_s = options.time_s;
+    settings.time_budget_s = remaining_budget(options.time_s, setup);
     settings.seed = options.seed.value_or(scene.sampler().seed);
     if (options.max_depth) settings.path.max_depth = *options.max_depth;
     const std::string shift = options.shift.empty() ? "auto" : options.shift;
@@ -390,7 +417,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options, Pro
                 {"time_budget_s", settings.time_budget_s},
                 {"seed", settings.seed},
                 {"shift", shift},
-                {"neighbours", "lattice"},
+                {"neighbours", setup.config},
                 {"primal_weight", settings.primal_weight},
                 {"primal_from_offsets", settings.primal_from_offsets},
                 {"reconstruct", reconstruct::to_string(rc.method)},
@@ -406,15 +433,17 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options, Pro
                 {"kelemen_style_weights", settings.kelemen_weights},
                 {"max_depth", settings.path.max_depth},
                 {"hide_emitters", settings.path.hide_emitters}};
+    const Film& film = scene.camera().film();
     const mlt::GdmltOutput out = mlt::render_gdmlt(
-        scene, settings, &g_interrupted,
-        [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
+        scene, settings,
+        setup.adap ? *setup.adap : NeighbourSet::lattice(film.crop_width, film.crop_height),
+        &g_interrupted, [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
     const double solve_s = solve_gradient_render(out.buffers, rc, r);
     r.extra_layers.push_back(ExrLayer{"sample_density", {"Y"}, out.sample_density});
     const mlt::GdmltStats& s = out.stats;
     r.partial = s.interrupted;
     r.stats = chain_stats_json(s);
-    r.stats["render_s"] = s.total_s + solve_s;
+    r.stats["render_s"] = setup.seconds + s.total_s + solve_s;
     r.stats["sampling_s"] = s.total_s;
     r.stats["very_direct_s"] = s.very_direct_s;
     r.stats["reconstruct_s"] = solve_s;
@@ -437,6 +466,36 @@ int run_render(const RenderOptions& options) {
                          "' is not available (available: path, pssmlt, gdpt, gdmlt)");
     if (options.max_depth && (*options.max_depth == 0 || *options.max_depth < -1))
         throw InputError("--max-depth must be -1 or at least 1");
+    const bool gradient_domain = integrator == "gdpt" || integrator == "gdmlt";
+    const std::string neighbours = options.neighbours.empty() ? "lattice" : options.neighbours;
+    if (neighbours != "lattice" && neighbours != "adap")
+        throw InputError("--neighbours must be lattice or adap");
+    const bool adap = neighbours == "adap";
+    if (adap && !gradient_domain)
+        throw InputError("--neighbours adap needs a gradient-domain integrator (gdpt, gdmlt)");
+    const bool adap_knobs =
+        options.adap_k || options.adap_window || !options.adap_sigma.empty() || options.adap_mutual;
+    if (adap_knobs && !adap) throw InputError("--adap-* options need --neighbours adap");
+    if (options.feature_spp && !options.features && !adap)
+        throw InputError("--feature-spp needs --features or --neighbours adap");
+    AdapSettings adap_settings;
+    if (options.adap_k) adap_settings.neighbours = *options.adap_k;
+    if (options.adap_window) adap_settings.window_radius = *options.adap_window;
+    if (!options.adap_sigma.empty()) {
+        if (options.adap_sigma.size() != 4)
+            throw InputError("--adap-sigma expects 4 bandwidths: albedo,normal,depth,shape");
+        adap_settings.sigma_albedo = options.adap_sigma[0];
+        adap_settings.sigma_normal = options.adap_sigma[1];
+        adap_settings.sigma_depth = options.adap_sigma[2];
+        adap_settings.sigma_shape = options.adap_sigma[3];
+    }
+    adap_settings.mutual = options.adap_mutual;
+    if (adap_settings.neighbours < 1 || adap_settings.window_radius < 1 ||
+        adap_settings.window_radius > 8)
+        throw InputError("--adap-k must be at least 1 and --adap-window lie in [1, 8]");
+    for (const float sigma : options.adap_sigma)
+        if (!std::isfinite(sigma) || sigma < 0.f)
+            throw InputError("--adap-sigma: bandwidths must be finite and >= 0 (0 = off)");
 
     const int threads = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
@@ -449,13 +508,14 @@ int run_render(const RenderOptions& options) {
 
     g_interrupted.store(false);
     std::signal(SIGINT, on_sigint);
-    // The feature pass runs first, so that a later adaptive integrator can read its images;
-    // it derives its own streams from the render's seed (feature_pass.h).
+    // The feature pass runs first, so that ADAP can choose neighbours from its images; it
+    // derives its own streams from the render's seed (feature_pass.h).
     std::optional<FeatureImages> features;
     double feature_pass_s = 0.0;
-    if (options.features) {
+    const int feature_spp = options.feature_spp.value_or(4);
+    if (options.features || adap) {
         FeatureSettings fs;
-        fs.spp = options.feature_spp;
+        fs.spp = feature_spp;
         fs.seed = options.seed.value_or(scene.sampler().seed);
         const auto start = std::chrono::steady_clock::now();
         features = render_features(scene, fs, &g_interrupted);
@@ -465,10 +525,40 @@ int run_render(const RenderOptions& options) {
             std::cerr << "gdmlt: feature pass: " << features->spp << " spp in " << feature_pass_s
                       << " s\n";
     }
+    // ADAP's graph, frozen before sampling starts.
+    NeighbourSetup setup;
+    std::optional<NeighbourSet> adap_set;
+    json selection_stats;
+    setup.config = {{"kind", neighbours}};
+    if (adap) {
+        const auto start = std::chrono::steady_clock::now();
+        adap_set = select_adap_neighbours(*features, adap_settings);
+        const double selection_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        setup.adap = &*adap_set;
+        setup.seconds = feature_pass_s + selection_s;
+        setup.config.update({{"k", adap_settings.neighbours},
+                             {"window_radius", adap_settings.window_radius},
+                             {"sigma",
+                              {{"albedo", adap_settings.sigma_albedo},
+                               {"normal", adap_settings.sigma_normal},
+                               {"depth", adap_settings.sigma_depth},
+                               {"shape", adap_settings.sigma_shape}}},
+                             {"mutual", adap_settings.mutual},
+                             {"feature_spp", feature_spp}});
+        selection_stats = {
+            {"selection_s", selection_s},
+            {"edges", adap_set->edges().size()},
+            {"lattice_edges",
+             NeighbourSet::lattice(film.crop_width, film.crop_height).edges().size()},
+            {"mean_links_per_pixel", static_cast<double>(adap_set->link_count()) /
+                                         static_cast<double>(adap_set->pixel_count())},
+            {"max_links_per_pixel", adap_set->max_links()}};
+    }
     ProgressBar bar(isatty(STDERR_FILENO) != 0, options.quiet);
     IntegratorResult result = integrator == "pssmlt"  ? run_pssmlt(scene, options, bar)
-                              : integrator == "gdpt"  ? run_gdpt(scene, options, bar)
-                              : integrator == "gdmlt" ? run_gdmlt(scene, options, bar)
+                              : integrator == "gdpt"  ? run_gdpt(scene, options, setup, bar)
+                              : integrator == "gdmlt" ? run_gdmlt(scene, options, setup, bar)
                                                       : run_path(scene, options, bar);
     std::signal(SIGINT, SIG_DFL);
     if (features) {
@@ -493,8 +583,9 @@ int run_render(const RenderOptions& options) {
     config["defines"] = options.defines;
     config["version"] = kVersion;
     config["features"] = options.features;
-    config["feature_spp"] = options.features ? json(options.feature_spp) : json(nullptr);
+    config["feature_spp"] = features ? json(feature_spp) : json(nullptr);
     json stats = result.stats;
+    if (adap) stats["neighbour_selection"] = selection_stats;
     if (features) {
         stats["feature_pass_s"] = feature_pass_s;
         stats["feature_spp_completed"] = features->spp;
@@ -503,7 +594,6 @@ int run_render(const RenderOptions& options) {
     stats["config"] = config;
     stats["partial"] = result.partial;
     stats["scene"] = {{"features", features_json(scene.features())}, {"counts", scene.counts()}};
-    const bool gradient_domain = integrator == "gdpt" || integrator == "gdmlt";
     stats["machinery"] = {
         {"next_event_estimation", true},
         {"shift_mappings", gradient_domain},
@@ -641,14 +731,27 @@ int main(int argc, char** argv) {
                            "GDMLT: grow the bootstrap until b's relative standard error is "
                            "below this (0.01)");
 
-    CLI::Option* features_flag = render_cmd->add_flag(
+    render_cmd->add_flag(
         "--features", render.features,
         "Also render ADAP's feature images (albedo, normal, depth, shape_id and their "
         "variances) into layers of the EXR, before the render");
     render_cmd
-        ->add_option("--feature-spp", render.feature_spp, "Samples per pixel of --features (4)")
-        ->check(CLI::PositiveNumber)
-        ->needs(features_flag);
+        ->add_option("--feature-spp", render.feature_spp,
+                     "Samples per pixel of the feature pass (--features, --neighbours adap; 4)")
+        ->check(CLI::PositiveNumber);
+    render_cmd->add_option("--neighbours", render.neighbours,
+                           "Gradient domain: lattice | adap (feature-selected, Manzi et al. 2014)");
+    render_cmd->add_option("--adap-k", render.adap_k,
+                           "ADAP: most similar candidates each pixel keeps (4)");
+    render_cmd->add_option("--adap-window", render.adap_window,
+                           "ADAP: candidates within this many pixels on each axis (2)");
+    render_cmd
+        ->add_option("--adap-sigma", render.adap_sigma,
+                     "ADAP: bandwidths albedo,normal,depth,shape (0.1,0.2,0.05,0.5; 0 = off)")
+        ->delimiter(',')
+        ->expected(4);
+    render_cmd->add_flag("--adap-mutual", render.adap_mutual,
+                         "ADAP: keep an edge only when both ends chose it (default: either)");
 
     std::string info_scene;
     std::vector<std::string> info_defines;
