@@ -87,20 +87,26 @@ void NeighbourSet::build_links() {
 }
 
 void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> differences,
-                            GradientBuffers& buffers) {
+                            GradientBuffers& buffers, std::span<const double> variances) {
     if (differences.size() != set.edges().size())
         throw std::invalid_argument("store_edge_differences: one difference per edge expected");
+    const bool with_variance = !variances.empty();
+    if (with_variance && variances.size() != set.edges().size())
+        throw std::invalid_argument("store_edge_differences: one variance per edge expected");
     const int w = set.width(), h = set.height();
     buffers.dx = Image(w, h, 3);
     buffers.dy = Image(w, h, 3);
     buffers.extra_edges.clear();
     buffers.extra_differences.clear();
+    buffers.dx_variance = with_variance ? Image(w, h, 1) : Image();
+    buffers.dy_variance = with_variance ? Image(w, h, 1) : Image();
+    buffers.extra_variances.clear();
     for (std::size_t e = 0; e < set.edges().size(); ++e) {
         const GradientEdge& edge = set.edges()[e];
         const int x = edge.from % w, y = edge.from / w;
-        Image* layer = edge.to == edge.from + 1 && x + 1 < w ? &buffers.dx
-                       : edge.to == edge.from + w            ? &buffers.dy
-                                                             : nullptr;
+        const bool is_dx = edge.to == edge.from + 1 && x + 1 < w;
+        const bool is_dy = !is_dx && edge.to == edge.from + w;
+        Image* layer = is_dx ? &buffers.dx : is_dy ? &buffers.dy : nullptr;
         for (int c = 0; c < 3; ++c) {
             const auto v = static_cast<float>(differences[e][c]);
             if (layer)
@@ -109,6 +115,14 @@ void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> diffe
                 buffers.extra_differences.push_back(v);
         }
         if (!layer) buffers.extra_edges.push_back(edge);
+        if (!with_variance) continue;
+        const auto v = static_cast<float>(variances[e]);
+        if (is_dx)
+            buffers.dx_variance(x, y) = v;
+        else if (is_dy)
+            buffers.dy_variance(x, y) = v;
+        else
+            buffers.extra_variances.push_back(v);
     }
 }
 

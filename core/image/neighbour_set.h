@@ -74,7 +74,10 @@ class NeighbourSet {
 /// Writes per-edge differences (RGB, I(to) - I(from), in the order of `set.edges()`) into the
 /// buffers: an edge (x,y)->(x+1,y) goes to dx(x,y), (x,y)->(x,y+1) to dy(x,y), every other edge
 /// to extra_edges / extra_differences. dx and dy are allocated (zero) at the set's size.
+/// `variances` (one per edge, the variance of that edge's difference; empty = unknown) go the
+/// same way to dx_variance / dy_variance (1 channel, zero where no edge) and extra_variances;
+/// without them those fields are cleared, so no stale variance outlives its differences.
 void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> differences,
-                            GradientBuffers& buffers);
+                            GradientBuffers& buffers, std::span<const double> variances = {});
 
 }  // namespace gdmlt

@@ -72,6 +72,29 @@ TEST(NeighbourSet, StoresLatticeEdgesInDxDyAndOthersAsExtraEdges) {
     ASSERT_EQ(b.extra_differences.size(), 6u);
     EXPECT_EQ(b.extra_differences[0], 7.f);
     EXPECT_EQ(b.extra_differences[5], 12.f);
+    // No variances given: none kept.
+    EXPECT_TRUE(b.dx_variance.pixels.empty());
+    EXPECT_TRUE(b.extra_variances.empty());
+
+    // Variances follow their edges, 1 channel, zero where a layer has no edge.
+    const std::vector<double> variances = {0.5, 0.25, 0.125, 2.0};
+    store_edge_differences(set, differences, b, variances);
+    ASSERT_EQ(b.dx_variance.channels, 1);
+    ASSERT_EQ(b.dy_variance.channels, 1);
+    EXPECT_EQ(b.dx_variance(0, 0), 0.5f);
+    EXPECT_EQ(b.dy_variance(1, 0), 0.25f);
+    float dxv_sum = 0.f, dyv_sum = 0.f;
+    for (float v : b.dx_variance.pixels) dxv_sum += v;
+    for (float v : b.dy_variance.pixels) dyv_sum += v;
+    EXPECT_EQ(dxv_sum, 0.5f);
+    EXPECT_EQ(dyv_sum, 0.25f);
+    EXPECT_EQ(b.extra_variances, (std::vector<float>{0.125f, 2.f}));
+    // Without variances again: the old ones are cleared, not left beside new differences.
+    store_edge_differences(set, differences, b);
+    EXPECT_TRUE(b.dy_variance.pixels.empty());
+    EXPECT_TRUE(b.extra_variances.empty());
+    EXPECT_THROW(store_edge_differences(set, differences, b, std::vector<double>{1.0}),
+                 std::invalid_argument);
 }
 
 }  // namespace
