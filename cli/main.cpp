@@ -17,6 +17,7 @@
 
 #include "cli/progress.h"
 #include "cli/reconstruct_command.h"
+#include "core/image/gradient_layers.h"
 #include "core/image/image_io.h"
 #include "core/render/render_path.h"
 #include "core/scene/scene.h"
@@ -180,10 +181,9 @@ double solve_gradient_render(const GradientBuffers& buffers,
                              const reconstruct::ReconstructConfig& config, IntegratorResult& r) {
     const auto start = std::chrono::steady_clock::now();
     r.image = reconstruct::reconstruct_buffers(buffers, config).image;
-    r.extra_layers = {ExrLayer{"primal", {"R", "G", "B"}, buffers.primal},
-                      ExrLayer{"dx", {"R", "G", "B"}, buffers.dx},
-                      ExrLayer{"dy", {"R", "G", "B"}, buffers.dy},
-                      ExrLayer{"very_direct", {"R", "G", "B"}, buffers.very_direct}};
+    // Every layer the solve may read (variances, sample counts: whichever the integrator
+    // filled), so that `gdmlt reconstruct` re-solves the file to this image.
+    r.extra_layers = gradient_layers(buffers);
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
@@ -346,7 +346,6 @@ IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options, Prog
         scene, settings, &g_interrupted,
         [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
     const double solve_s = solve_gradient_render(out.buffers, rc, r);
-    r.extra_layers.push_back(ExrLayer{"sample_count", {"Y"}, out.buffers.sample_count});
     const mlt::GdptStats& s = out.stats;
     r.partial = s.interrupted;
     r.stats = {

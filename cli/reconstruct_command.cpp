@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "core/image/gradient_buffers.h"
+#include "core/image/gradient_layers.h"
 #include "core/image/image_io.h"
 #include "core/scene/scene_desc.h"
 #include "reconstruct/reconstruct.h"
@@ -34,46 +35,8 @@ struct ReconstructOptions {
     bool quiet = false;
 };
 
-const ExrLayer* find_layer(const std::vector<ExrLayer>& layers, const std::string& name) {
-    for (const ExrLayer& l : layers)
-        if (l.name == name) return &l;
-    return nullptr;
-}
-
-/// The R,G,B channels of a layer, in that order, as a 3-channel image.
-Image rgb_of(const ExrLayer& layer, const std::string& file) {
-    int index[3] = {-1, -1, -1};
-    const char* names[3] = {"R", "G", "B"};
-    for (std::size_t c = 0; c < layer.channel_names.size(); ++c)
-        for (int k = 0; k < 3; ++k)
-            if (layer.channel_names[c] == names[k]) index[k] = static_cast<int>(c);
-    if (index[0] < 0 || index[1] < 0 || index[2] < 0)
-        throw InputError(file + ": layer '" + layer.name + "' needs channels R, G, B");
-    const Image& src = layer.image;
-    Image out(src.width, src.height, 3);
-    for (std::size_t i = 0; i < src.pixel_count(); ++i)
-        for (int k = 0; k < 3; ++k)
-            out.pixels[3 * i + static_cast<std::size_t>(k)] =
-                src.pixels[i * static_cast<std::size_t>(src.channels) +
-                           static_cast<std::size_t>(index[k])];
-    return out;
-}
-
 GradientBuffers read_buffers(const std::string& path, ExrAttributes& attributes) {
-    const std::vector<ExrLayer> layers = read_exr(path, &attributes);
-    GradientBuffers b;
-    const ExrLayer* primal = find_layer(layers, "primal");
-    if (!primal) throw InputError(path + ": no 'primal' layer (is this a gradient-domain render?)");
-    b.primal = rgb_of(*primal, path);
-    const ExrLayer* dx = find_layer(layers, "dx");
-    const ExrLayer* dy = find_layer(layers, "dy");
-    if (!dx && !dy) throw InputError(path + ": no 'dx' or 'dy' layer");
-    if (dx) b.dx = rgb_of(*dx, path);
-    if (dy) b.dy = rgb_of(*dy, path);
-    if (const ExrLayer* v = find_layer(layers, "primal_variance")) b.primal_variance = v->image;
-    if (const ExrLayer* n = find_layer(layers, "sample_count")) b.sample_count = n->image;
-    if (const ExrLayer* v = find_layer(layers, "very_direct")) b.very_direct = rgb_of(*v, path);
-    return b;
+    return gradient_buffers_from_layers(read_exr(path, &attributes), path);
 }
 
 std::string default_output(const std::string& input) {
