@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Gradient-domain path tracing converges to the path tracer's image, primal and reconstructed.
+// Gradient-domain path tracing converges to the path tracer's image, primal and reconstructed;
+// its variance layers match the spread of independent renders and survive the EXR round trip.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -300,7 +302,8 @@ TEST(Gdpt, RenderWrittenToExrReSolvesToTheSameImage) {
     settings.path.max_depth = 8;
     const GradientBuffers rendered = mlt::render_gdpt(scene, settings).buffers;
     const std::filesystem::path path =
-        std::filesystem::temp_directory_path() / "gdmlt_test_gdpt_round_trip.exr";
+        std::filesystem::temp_directory_path() /
+        ("gdmlt_test_gdpt_round_trip_" + std::to_string(::getpid()) + ".exr");
     write_exr(path.string(), gradient_layers(rendered));
     const GradientBuffers read = gradient_buffers_from_layers(read_exr(path.string()), "raw");
     std::filesystem::remove(path);
