@@ -28,6 +28,23 @@ def rel_mse(image, reference):
     return float(np.mean((image - reference) ** 2 / (reference ** 2 + 0.01)))
 
 
+def box_downsample(image, factor=8):
+    """Mean over factor x factor blocks of an HxWxC image (rows and columns beyond the last
+    whole block are dropped)."""
+    h, w = image.shape[0] - image.shape[0] % factor, image.shape[1] - image.shape[1] % factor
+    if h == 0 or w == 0:
+        raise ValueError(f"image {image.shape[:2]} is smaller than one {factor}x{factor} block")
+    blocks = image[:h, :w].reshape(h // factor, factor, w // factor, factor, -1)
+    return blocks.mean(axis=(1, 3))
+
+
+def low_pass_rel_mse(image, reference, factor=8):
+    """rel_mse of the factor x factor box-downsampled image against the same downsampling of
+    the reference: the error left at coarse scales, where pixel noise has averaged out and
+    bias, lost energy or blotches remain."""
+    return rel_mse(box_downsample(image, factor), box_downsample(reference, factor))
+
+
 if __name__ == "__main__":
     if len(sys.argv) != 3:
         sys.exit("usage: metrics.py image.exr reference.exr")

@@ -11,9 +11,23 @@ With --cli PATH (the gdmlt executable, or any driver exposing the `reconstruct` 
 also writes a synthetic raw.exr with layers primal/dx/dy through OpenImageIO and times the
 command end to end (file I/O included) for each method.
 
+With --scenes (names, or none for every scene with a reference) it measures the methods on
+real renders instead of the micro-benchmarks (add --micro for both): per scene one GDPT render
+(`gdmlt render --integrator gdpt --spp N`, or --time), then `gdmlt reconstruct` of that raw
+EXR with each of --methods, compared with --references/NAME.exr. Per scene and method it
+prints relMSE (bench/metrics.py), the mean ratio (image mean / reference mean: lost or added
+energy) and the low-pass relMSE (8x8 box-downsampled image against the downsampled
+reference: coarse-scale error once pixel noise has averaged out), and writes
+bench/out/reconstruct_scenes.json. Method "primal" is the raw primal + very_direct (no
+reconstruction); "cv-count" is cv on a copy of the EXR without the variance layers, i.e. cv
+with Var(primal) = 1 / sample_count and exact differences. Scenes are looked up in
+--scene-dir (default ../shared/scenes beside the repository), then in scenes/.
+
   /usr/bin/python3 bench/reconstruct_cost.py   (Debian python: numpy, matplotlib, OpenImageIO)
   python3 bench/reconstruct_cost.py --bench build/release/bench/bench_reconstruct \
       [--repetitions 5] [--filter BM_L2] [--cli build/release/gdmlt] [--image render.exr]
+  python3 bench/reconstruct_cost.py --scenes cbox caustic_glass_light [--spp 64 | --time 16] \
+      [--methods primal l1 l2 cv cv-count] [--references DIR] [--threads 2] [--seed 0]
 """
 import argparse
 import json
@@ -28,6 +42,9 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 OUT = os.path.join(HERE, "out")
+ROOT = os.path.dirname(HERE)
+SHARED = os.path.join(os.path.dirname(ROOT), "shared")
+VARIANCE_LAYERS = ("primal_variance", "dx_variance", "dy_variance")
 
 
 def run_benchmark(binary, repetitions, flt, image):
@@ -136,6 +153,79 @@ def cli_timing(cli, repetitions):
                   f"RMSE {err:.5f} (primal {float(np.sqrt(np.mean((primal - clean) ** 2))):.5f})")
 
 
+def resolve_scene(name, scene_dir):
+    """A scene name (cbox) or a path to an .xml file -> path of the scene file."""
+    if name.endswith(".xml") and os.path.isfile(name):
+        return os.path.abspath(name)
+    for directory in (scene_dir, os.path.join(ROOT, "scenes")):
+        path = os.path.join(directory, name + ".xml")
+        if os.path.isfile(path):
+            return path
+    sys.exit(f"scene {name!r} not found in {scene_dir} or {os.path.join(ROOT, 'scenes')}")
+
+
+def without_variance_layers(raw, path):
+    """Copy of a raw EXR without the variance layers (header kept): what reconstruction sees
+    of a render that only had sample counts."""
+    import OpenImageIO as oiio
+    buf = oiio.ImageBuf(raw)
+    keep = tuple(n for n in buf.spec().channelnames if n.split(".")[0] not in VARIANCE_LAYERS)
+    stripped = oiio.ImageBufAlgo.channels(buf, keep)
+    if not stripped.write(path):
+        raise RuntimeError(f"{path}: {stripped.geterror()}")
+    return path
+
+
+def scene_comparison(args, cli):
+    """Each reconstruction method on a GDPT render of each scene against its reference."""
+    sys.path.insert(0, HERE)
+    import metrics
+    names = args.scenes or sorted(os.path.splitext(f)[0] for f in os.listdir(args.references)
+                                  if f.endswith(".exr"))
+    budget = ["--time", str(args.time)] if args.time else ["--spp", str(args.spp)]
+    threads = ["-t", str(args.threads)] if args.threads else []
+    rows = []
+    print(f"{'scene':22} {'method':9} {'relMSE':>10} {'mean':>7} {'low-pass':>10} {'time s':>7}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            scene = resolve_scene(name, args.scene_dir)
+            stem = os.path.splitext(os.path.basename(scene))[0]
+            reference = metrics.read_rgb(os.path.join(args.references, stem + ".exr"))
+            raw = os.path.join(tmp, stem + "_raw.exr")
+            subprocess.run([cli, "render", scene, "--integrator", "gdpt", "--seed",
+                            str(args.seed), "-q", "-o", raw] + budget + threads, check=True)
+            for method in args.methods:
+                seconds = 0.0
+                if method == "primal":
+                    image = metrics.read_rgb(raw, "primal") + metrics.read_rgb(raw, "very_direct")
+                else:
+                    source = raw
+                    if method == "cv-count":
+                        source = without_variance_layers(raw, os.path.join(tmp, stem + "_nv.exr"))
+                    final = os.path.join(tmp, f"{stem}_{method}.exr")
+                    t0 = time.perf_counter()
+                    subprocess.run([cli, "reconstruct", source, "--method",
+                                    method.split("-")[0], "-q", "-o", final] + threads, check=True)
+                    seconds = time.perf_counter() - t0
+                    image = metrics.read_rgb(final)
+                if image.shape != reference.shape:
+                    sys.exit(f"{stem}: render {image.shape} and reference {reference.shape} differ")
+                row = {"scene": stem, "method": method,
+                       "rel_mse": metrics.rel_mse(image, reference),
+                       "mean_ratio": float(image.mean() / reference.mean()),
+                       "low_pass_rel_mse": metrics.low_pass_rel_mse(image, reference),
+                       "reconstruct_s": seconds}
+                rows.append(row)
+                print(f"{stem:22} {method:9} {row['rel_mse']:10.5f} {row['mean_ratio']:7.3f} "
+                      f"{row['low_pass_rel_mse']:10.5f} {seconds:7.2f}", flush=True)
+    os.makedirs(OUT, exist_ok=True)
+    path = os.path.join(OUT, "reconstruct_scenes.json")
+    with open(path, "w") as f:
+        json.dump({"budget": budget, "seed": args.seed, "threads": args.threads, "rows": rows}, f,
+                  indent=1)
+    print(f"\nresults: {path}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -144,8 +234,28 @@ def main():
     ap.add_argument("--repetitions", type=int, default=5)
     ap.add_argument("--filter", default=".")
     ap.add_argument("--image", help="rendered EXR/PNG to use as the clean image")
-    ap.add_argument("--cli", help="gdmlt executable: also time `reconstruct` end to end")
+    ap.add_argument("--cli", help="gdmlt executable: also time `reconstruct` end to end "
+                    "(with --scenes: the renderer, default build/release/gdmlt)")
+    ap.add_argument("--scenes", nargs="*", help="compare the methods on GDPT renders of these "
+                    "scenes (no names: every scene with a reference) instead of the "
+                    "micro-benchmarks")
+    ap.add_argument("--micro", action="store_true", help="with --scenes: also the micro-benchmarks")
+    ap.add_argument("--methods", nargs="+", default=["primal", "l1", "l2", "cv", "cv-count"],
+                    choices=["primal", "l1", "l2", "cv", "cv-count"])
+    ap.add_argument("--spp", type=int, default=64, help="GDPT samples per pixel (--scenes)")
+    ap.add_argument("--time", type=float, help="GDPT time budget in seconds instead of --spp")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--threads", type=int, default=0, help="0: gdmlt's default (all cores)")
+    ap.add_argument("--scene-dir", default=os.path.join(SHARED, "scenes"))
+    ap.add_argument("--references", default=os.path.join(SHARED, "references"))
     args = ap.parse_args()
+    if args.scenes is not None:
+        cli = args.cli or os.path.join(ROOT, "build", "release", "gdmlt")
+        if not os.path.exists(cli):
+            sys.exit(f"gdmlt executable not found: {cli} (cmake --build build/release)")
+        scene_comparison(args, cli)
+        if not args.micro:
+            return
     if not os.path.exists(args.bench):
         sys.exit(f"benchmark binary not found: {args.bench} (cmake --build build/release)")
     rows = run_benchmark(args.bench, args.repetitions, args.filter, args.image)

@@ -200,6 +200,8 @@ double solve_gradient_render(const GradientBuffers& buffers,
                              const reconstruct::ReconstructConfig& config, IntegratorResult& r) {
     const auto start = std::chrono::steady_clock::now();
     r.image = reconstruct::reconstruct_buffers(buffers, config).image;
+    // Every layer the solve may read (variances, sample counts, graph edges: whichever the
+    // integrator filled), so that `gdmlt reconstruct` re-solves the file to this image.
     r.extra_layers = gradient_layers(buffers);
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }

@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
 // `gdmlt reconstruct raw.exr --method l1|l2|cv --alpha 0.2 [--iterations N] -o final.exr`:
-// reads the layers a gradient-domain render writes ("primal", "dx", "dy", optional
-// "primal_variance" or "sample_count"), reconstructs, writes the EXR and a PNG preview beside it.
+// reads the layers a gradient-domain render writes (core/image/gradient_layers.h: "primal", "dx",
+// "dy", optional "very_direct", "sample_count" and the variance layers), reconstructs, writes the
+// EXR and a PNG preview beside it.
 #include <CLI/CLI.hpp>
 
 namespace gdmlt {

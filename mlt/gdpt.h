@@ -36,7 +36,12 @@ struct GdptStats {
 };
 
 struct GdptOutput {
-    GradientBuffers buffers;  // primal, dx, dy (+ extra edges), very_direct, sample_count
+    /// primal, dx, dy (+ extra edges), very_direct, sample_count, and the variances of the
+    /// primal's and of every edge's estimate (primal_variance, dx_variance, dy_variance,
+    /// extra_variances: 1 channel, the channel mean of the variance of the per-pixel mean /
+    /// of the edge's difference; +inf where a pixel has fewer than 2 samples; left empty when
+    /// no pixel has 2).
+    GradientBuffers buffers;
     GdptStats stats;
 };
 

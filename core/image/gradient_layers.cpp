@@ -69,6 +69,14 @@ Image rgb(const ExrLayer& l, const std::string& file) {
 Image luminance_layer(const ExrLayer& l, const std::string& file) {
     return channels_of(l, {"Y"}, file);
 }
+/// Variance layers: one channel (the mean over RGB) or one per RGB channel.
+Image variance_layer(const ExrLayer& l, const std::string& file) {
+    const bool has_y =
+        std::find(l.channel_names.begin(), l.channel_names.end(), "Y") != l.channel_names.end();
+    if (!has_y && l.channel_names.size() != 3)
+        throw InputError(file + ": variance layer '" + l.name + "' needs channel Y or R, G, B");
+    return has_y ? luminance_layer(l, file) : rgb(l, file);
+}
 
 }  // namespace
 
@@ -123,11 +131,11 @@ GradientBuffers gradient_buffers_from_layers(const std::vector<ExrLayer>& layers
     if (const ExrLayer* l = find_layer(layers, "dy")) b.dy = rgb(*l, file);
     if (const ExrLayer* l = find_layer(layers, "very_direct")) b.very_direct = rgb(*l, file);
     if (const ExrLayer* l = find_layer(layers, "primal_variance"))
-        b.primal_variance = luminance_layer(*l, file);
+        b.primal_variance = variance_layer(*l, file);
     if (const ExrLayer* l = find_layer(layers, "dx_variance"))
-        b.dx_variance = luminance_layer(*l, file);
+        b.dx_variance = variance_layer(*l, file);
     if (const ExrLayer* l = find_layer(layers, "dy_variance"))
-        b.dy_variance = luminance_layer(*l, file);
+        b.dy_variance = variance_layer(*l, file);
     if (const ExrLayer* l = find_layer(layers, "sample_count"))
         b.sample_count = luminance_layer(*l, file);
 

@@ -88,9 +88,12 @@ void NeighbourSet::build_links() {
 }
 
 void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> differences,
-                            GradientBuffers& buffers) {
+                            GradientBuffers& buffers, std::span<const double> variances) {
     if (differences.size() != set.edges().size())
         throw std::invalid_argument("store_edge_differences: one difference per edge expected");
+    const bool with_variance = !variances.empty();
+    if (with_variance && variances.size() != set.edges().size())
+        throw std::invalid_argument("store_edge_differences: one variance per edge expected");
     const int w = set.width(), h = set.height();
     // A lattice layer holds its direction only when the set has every edge of it: a zero in a
     // layer means "difference 0", not "no edge" (ADAP drops some lattice edges).
@@ -110,8 +113,11 @@ void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> diffe
     const bool full_dy = h > 1 && vertical == static_cast<std::size_t>(h - 1) * w;
     buffers.dx = full_dx ? Image(w, h, 3) : Image();
     buffers.dy = full_dy ? Image(w, h, 3) : Image();
+    buffers.dx_variance = full_dx && with_variance ? Image(w, h, 1) : Image();
+    buffers.dy_variance = full_dy && with_variance ? Image(w, h, 1) : Image();
     buffers.extra_edges.clear();
     buffers.extra_differences.clear();
+    buffers.extra_variances.clear();
     // Extra edges oriented from the smaller pixel index and ordered by offset (dy, dx), then by
     // `from`: the order in which core/image/gradient_layers.h reads them back from an EXR, so that
     // re-solving a file sees exactly the render's system.
@@ -132,6 +138,9 @@ void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> diffe
             const auto v = static_cast<float>(differences[e][c]);
             (*layer)(from % w, from / w, c) = forward ? v : -v;
         }
+        if (with_variance)
+            (layer == &buffers.dx ? buffers.dx_variance : buffers.dy_variance)(from % w, from / w) =
+                static_cast<float>(variances[e]);
     }
     const auto key = [&](std::size_t e) {
         const GradientEdge& edge = set.edges()[e];
@@ -148,6 +157,7 @@ void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> diffe
             const auto v = static_cast<float>(differences[e][c]);
             buffers.extra_differences.push_back(forward ? v : -v);
         }
+        if (with_variance) buffers.extra_variances.push_back(static_cast<float>(variances[e]));
     }
 }
 

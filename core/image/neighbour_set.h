@@ -76,7 +76,10 @@ class NeighbourSet {
 /// every other edge goes to extra_edges / extra_differences, oriented from the smaller pixel
 /// index and ordered by offset (dy, dx), then by that pixel. dx or dy stays empty when the set
 /// lacks some edge of its direction (a 0 in a layer would read as "no change", not "no edge").
+/// `variances` (one per edge, the variance of that edge's difference; empty = unknown) go the
+/// same way to dx_variance / dy_variance (1 channel) and extra_variances; without them those
+/// fields are cleared, so no stale variance outlives its differences.
 void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> differences,
-                            GradientBuffers& buffers);
+                            GradientBuffers& buffers, std::span<const double> variances = {});
 
 }  // namespace gdmlt

@@ -97,6 +97,34 @@ TEST(NeighbourSet, AnIncompleteLatticeDirectionIsStoredAsExtraEdgesSoNoMissingEd
     EXPECT_EQ(b.extra_edges, expected);
     const std::vector<float> expected_differences = {1, 1, 1, 2, 2, 2, 3, 3, 3};
     EXPECT_EQ(b.extra_differences, expected_differences);
+    // No variances given: none kept.
+    EXPECT_TRUE(b.dx_variance.pixels.empty());
+    EXPECT_TRUE(b.extra_variances.empty());
+}
+
+TEST(NeighbourSet, VariancesFollowTheirEdges) {
+    // Full 2x2 lattice (dx: {0,1},{2,3}; dy: {0,2},{1,3}) plus the diagonals {0,3} and {2,1}.
+    const NeighbourSet set =
+        NeighbourSet::from_edges(2, 2, {{0, 1}, {2, 3}, {0, 2}, {1, 3}, {0, 3}, {2, 1}});
+    const std::vector<RgbD> differences(6, RgbD(1, 1, 1));
+    const std::vector<double> variances = {0.5, 0.25, 0.125, 2.0, 4.0, 8.0};
+    GradientBuffers b;
+    store_edge_differences(set, differences, b, variances);
+    ASSERT_EQ(b.dx_variance.channels, 1);
+    ASSERT_EQ(b.dy_variance.channels, 1);
+    EXPECT_EQ(b.dx_variance(0, 0), 0.5f);
+    EXPECT_EQ(b.dx_variance(0, 1), 0.25f);
+    EXPECT_EQ(b.dy_variance(0, 0), 0.125f);
+    EXPECT_EQ(b.dy_variance(1, 0), 2.f);
+    // Extras in canonical order: {1,2} (offset (-1, 1)) before {0,3} (offset (1, 1)).
+    ASSERT_EQ(b.extra_edges, (std::vector<GradientEdge>{{1, 2}, {0, 3}}));
+    EXPECT_EQ(b.extra_variances, (std::vector<float>{8.f, 4.f}));
+    // Without variances again: the old ones are cleared, not left beside new differences.
+    store_edge_differences(set, differences, b);
+    EXPECT_TRUE(b.dy_variance.pixels.empty());
+    EXPECT_TRUE(b.extra_variances.empty());
+    EXPECT_THROW(store_edge_differences(set, differences, b, std::vector<double>{1.0}),
+                 std::invalid_argument);
 }
 
 }  // namespace
