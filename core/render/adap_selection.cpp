@@ -78,6 +78,8 @@ NeighbourSet select_adap_neighbours(const FeatureImages& f, const AdapSettings& 
     if (s.neighbours < 1) throw std::invalid_argument("ADAP: neighbours (K) must be at least 1");
     if (s.window_radius < 1 || s.window_radius > 8)
         throw std::invalid_argument("ADAP: window radius must lie in [1, 8]");
+    if (!(s.min_similarity >= 0.f && s.min_similarity <= 1.f))
+        throw std::invalid_argument("ADAP: min_similarity must lie in [0, 1]");
     for (const float sigma : {s.sigma_albedo, s.sigma_normal, s.sigma_depth, s.sigma_shape})
         if (!std::isfinite(sigma) || sigma < 0.f)
             throw std::invalid_argument("ADAP: bandwidths must be finite and >= 0 (0 = off)");
@@ -123,11 +125,16 @@ NeighbourSet select_adap_neighbours(const FeatureImages& f, const AdapSettings& 
                 candidates.push_back({adap_similarity(f, s, i, j), static_cast<int>(o), j});
             }
             const std::size_t keep = std::min(k, candidates.size());
-            std::partial_sort(candidates.begin(), candidates.begin() + static_cast<long>(keep),
-                              candidates.end(), [](const Candidate& a, const Candidate& b) {
-                                  return std::tie(b.similarity, a.order) <
-                                         std::tie(a.similarity, b.order);
-                              });
+            // Similar candidates first, nearest first among them (offsets are sorted by
+            // distance); then the rest, most similar first.
+            const float threshold = s.min_similarity;
+            const auto key = [threshold](const Candidate& c) {
+                const bool similar = c.similarity >= threshold;
+                return std::tuple(!similar, similar ? 0.f : -c.similarity, c.order);
+            };
+            std::partial_sort(
+                candidates.begin(), candidates.begin() + static_cast<long>(keep), candidates.end(),
+                [&](const Candidate& a, const Candidate& b) { return key(a) < key(b); });
             for (std::size_t c = 0; c < keep; ++c)
                 chosen.emplace_back(std::min(i, candidates[c].other),
                                     std::max(i, candidates[c].other));

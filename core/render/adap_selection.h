@@ -12,8 +12,11 @@
 // with tau_k the squared difference the features' own noise explains (the sum of the two
 // pixels' variances of the mean, per channel) and sigma_k a bandwidth; w(i, j) = min_k w_k(i, j),
 // the thresholded-exponential feature weight of feature-guided denoisers (Rousselle, Manzi and
-// Zwicker 2013). Among the candidates in a square window around i, i keeps the K most similar,
-// the nearest first when weights tie, so that in a flat region ADAP is the 4-neighbour lattice.
+// Zwicker 2013). Among the candidates in a square window around i, i keeps the K nearest of
+// those similar enough (w >= min_similarity), topped up with the most similar others when fewer
+// pass: in a flat region ADAP is the 4-neighbour lattice, and noise in the features (a few
+// samples per pixel, more behind glass) does not reshuffle neighbours whose weights all lie
+// near 1 (ranking by w alone chose distant pixels by noise there, 40% more edges).
 //
 // The graph is built once from a feature pass and frozen before sampling: which offsets a pixel
 // uses never depends on the samples that estimate them, so the estimator stays unbiased.
@@ -28,13 +31,16 @@
 namespace gdmlt {
 
 struct AdapSettings {
-    int neighbours = 4;     // K: the most similar candidates each pixel keeps
+    int neighbours = 4;     // K: the candidates each pixel keeps
     int window_radius = 2;  // candidates: offsets with max(|dx|, |dy|) <= radius, except 0
     // Bandwidths sigma_k, in the units of each feature's difference:
     float sigma_albedo = 0.1f;  // RGB albedo in [0, 1]
     float sigma_normal = 0.2f;  // unit vectors: |n_i - n_j| = 0.2 is about 11 degrees
     float sigma_depth = 0.05f;  // |d_i - d_j| / max(d_i, d_j): relative depth
     float sigma_shape = 0.5f;   // a different shape id is a difference of 1
+    /// Candidates at least this similar count as "the same surface" and are taken nearest
+    /// first; 1 ranks every candidate by similarity alone.
+    float min_similarity = 0.5f;
     /// Union: an edge exists when either end chose it (algorithms digest sec. 3.3). Mutual:
     /// only when both did (fewer edges, cheaper samples; the unit-link rule keeps the graph
     /// connected).
