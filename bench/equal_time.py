@@ -14,8 +14,10 @@ Every run is `gdmlt render SCENE --integrator I --time T -t THREADS --seed S` (p
 SCENE is a name looked up in ../shared/scenes/ (the files the references were rendered from)
 and then in scenes/, or a path to an .xml file; it is compared with
 --references/NAME.exr. Each configuration runs --repeats times with seeds 0, 1, ...; the
-order is scene, budget, integrator, seed, so that a change of machine load hits all
-integrators of one budget alike. The machine may be shared: compare integrators within one
+order is scene, budget, seed, integrator (interleaved: each seed runs every integrator back
+to back), so that a change of machine load hits all integrators of one budget alike; a
+measured 25% swing in speed between consecutive minutes made the earlier integrator-major
+order favour whichever ran first. The machine may be shared: compare integrators within one
 run of this script, never across runs.
 
 An integrator may carry options as a variant, `NAME:KEY=VALUE[,KEY=VALUE...]`, which adds
@@ -257,8 +259,8 @@ def run_all(args, runner):
             print(f"  Mitsuba ({runner.info['variant']}) loaded in {loaded['load_s']:.2f} s, "
                   f"warm-up {loaded['warmup_s']:.2f} s (untimed)", flush=True)
         for seconds in args.times:
-            for spec in args.integrators:
-                for seed in range(args.repeats):
+            for seed in range(args.repeats):
+                for spec in args.integrators:
                     if spec == MITSUBA:
                         exr, run = render_mitsuba(args, runner, scene, seconds, seed)
                     else:
