@@ -19,7 +19,8 @@ prints relMSE (bench/metrics.py), the mean ratio (image mean / reference mean: l
 energy) and the low-pass relMSE (8x8 box-downsampled image against the downsampled
 reference: coarse-scale error once pixel noise has averaged out), and writes
 bench/out/reconstruct_scenes.json. Method "primal" is the raw primal + very_direct (no
-reconstruction); "cv-count" is cv on a copy of the EXR without the variance layers, i.e. cv
+reconstruction); "l1" is pure L1 (--huber 0) and "huber" L1 with Huber rows where the variance
+layers give the noise (--huber 1.345, the render default); "cv-count" is cv on a copy of the EXR without the variance layers, i.e. cv
 with Var(primal) = 1 / sample_count and exact differences. Scenes are looked up in
 --scene-dir (default ../shared/scenes beside the repository), then in scenes/.
 
@@ -204,8 +205,12 @@ def scene_comparison(args, cli):
                         source = without_variance_layers(raw, os.path.join(tmp, stem + "_nv.exr"))
                     final = os.path.join(tmp, f"{stem}_{method}.exr")
                     t0 = time.perf_counter()
-                    subprocess.run([cli, "reconstruct", source, "--method",
-                                    method.split("-")[0], "-q", "-o", final] + threads, check=True)
+                    # l1 is pure L1 and huber L1 with Huber rows (--huber), whatever the render's
+                    # default; the others take the render's settings.
+                    huber = {"l1": ["--huber", "0"], "huber": ["--huber", "1.345"]}.get(method, [])
+                    solver = "l1" if method == "huber" else method.split("-")[0]
+                    subprocess.run([cli, "reconstruct", source, "--method", solver, "-q", "-o",
+                                    final] + huber + threads, check=True)
                     seconds = time.perf_counter() - t0
                     image = metrics.read_rgb(final)
                 if image.shape != reference.shape:
@@ -240,8 +245,9 @@ def main():
                     "scenes (no names: every scene with a reference) instead of the "
                     "micro-benchmarks")
     ap.add_argument("--micro", action="store_true", help="with --scenes: also the micro-benchmarks")
-    ap.add_argument("--methods", nargs="+", default=["primal", "l1", "l2", "cv", "cv-count"],
-                    choices=["primal", "l1", "l2", "cv", "cv-count"])
+    ap.add_argument("--methods", nargs="+",
+                    default=["primal", "l1", "huber", "l2", "cv", "cv-count"],
+                    choices=["primal", "l1", "huber", "l2", "cv", "cv-count"])
     ap.add_argument("--spp", type=int, default=64, help="GDPT samples per pixel (--scenes)")
     ap.add_argument("--time", type=float, help="GDPT time budget in seconds instead of --spp")
     ap.add_argument("--seed", type=int, default=0)

@@ -68,6 +68,7 @@ struct RenderOptions {
     std::string reconstruct_method;
     std::optional<double> alpha;
     std::optional<int> coarse_radius;
+    std::optional<double> huber;
     std::string shift;
     // GDMLT knobs.
     std::optional<double> primal_weight;
@@ -191,6 +192,7 @@ reconstruct::ReconstructConfig reconstruct_config(const RenderOptions& options) 
     }
     if (options.alpha) rc.alpha = *options.alpha;
     rc.coarse_radius = options.coarse_radius.value_or(reconstruct::kDefaultCoarseRadius);
+    rc.huber_k = options.huber.value_or(reconstruct::kDefaultHuber);
     return rc;
 }
 
@@ -368,6 +370,7 @@ IntegratorResult run_gdpt(const Scene& scene, const RenderOptions& options,
         {"reconstruct", reconstruct::to_string(rc.method)},
         {"alpha", rc.alpha},
         {"coarse_radius", rc.coarse_radius},
+        {"huber", rc.huber_k},
         {"max_depth", settings.path.max_depth},
         {"hide_emitters", settings.path.hide_emitters}};
     const Film& film = scene.camera().film();
@@ -425,6 +428,8 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
                 {"reconstruct", reconstruct::to_string(rc.method)},
                 {"alpha", rc.alpha},
                 {"coarse_radius", rc.coarse_radius},
+                {"huber", rc.huber_k},
+                {"huber", rc.huber_k},
                 {"p_large", settings.mutation.p_large},
                 {"mutation_size", {settings.mutation.s1, settings.mutation.s2}},
                 {"image_mutation_size_pixels", settings.mutation.image_s2_pixels},
@@ -720,6 +725,11 @@ int main(int argc, char** argv) {
                      "Gradient domain: restore the primal's scales beyond this many pixels "
                      "(energy; 0 = off, default 8)")
         ->check(CLI::Range(0, 4096));
+    render_cmd
+        ->add_option("--huber", render.huber,
+                     "Gradient domain, l1: Huber threshold in noise standard deviations where the "
+                     "render has variance layers (gdpt; 1.345; 0 = pure L1)")
+        ->check(CLI::NonNegativeNumber);
     render_cmd->add_option("--shift", render.shift,
                            "Gradient domain: auto | reconnect | halfvector | replay");
     render_cmd->add_option("--primal-weight", render.primal_weight,

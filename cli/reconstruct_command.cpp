@@ -28,6 +28,7 @@ struct ReconstructOptions {
     std::string method;                // empty: the render's (EXR header), else l1
     std::optional<double> alpha;       // unset: the render's, else 0.2
     std::optional<int> coarse_radius;  // unset: the render's, else kDefaultCoarseRadius
+    std::optional<double> huber;       // unset: the render's, else 0 (pure L1)
     int iterations = 0;                // 0 = the method's default
     double tolerance = 0.0;            // 0 = the method's default
     int threads = 0;
@@ -58,6 +59,8 @@ void defaults_from_header(const ExrAttributes& attributes, ReconstructOptions& o
         o.alpha = j["alpha"].get<double>();
     if (!o.coarse_radius && j.contains("coarse_radius") && j["coarse_radius"].is_number_integer())
         o.coarse_radius = j["coarse_radius"].get<int>();
+    if (!o.huber && j.contains("huber") && j["huber"].is_number())
+        o.huber = j["huber"].get<double>();
 }
 
 int run_reconstruct(ReconstructOptions o) {
@@ -79,6 +82,7 @@ int run_reconstruct(ReconstructOptions o) {
     config.alpha = *o.alpha;
     config.coarse_radius = o.coarse_radius.value_or(reconstruct::kDefaultCoarseRadius);
     if (config.coarse_radius < 0) throw InputError("--coarse-radius must not be negative");
+    config.huber_k = o.huber.value_or(0.0);
     if (o.iterations > 0) {
         switch (*method) {
             case reconstruct::Method::l2:
@@ -108,6 +112,7 @@ int run_reconstruct(ReconstructOptions o) {
     attributes["gdmlt.reconstruct.method"] = o.method;
     attributes["gdmlt.reconstruct.alpha"] = std::to_string(*o.alpha);
     attributes["gdmlt.reconstruct.coarse_radius"] = std::to_string(config.coarse_radius);
+    attributes["gdmlt.reconstruct.huber"] = std::to_string(config.huber_k);
     attributes["gdmlt.reconstruct.iterations"] = std::to_string(s.iterations);
     attributes["gdmlt.reconstruct.cg_iterations"] = std::to_string(s.cg_iterations);
     attributes["gdmlt.reconstruct.relative_residual"] = std::to_string(s.final_relative_residual);
@@ -150,6 +155,10 @@ void add_reconstruct_command(CLI::App& app, int& exit_code) {
     cmd->add_option("--coarse-radius", options->coarse_radius,
                     "Restore the primal's scales beyond this many pixels (default: the render's, "
                     "else 8; 0 = off)");
+    cmd->add_option("--huber", options->huber,
+                    "l1: Huber threshold in noise standard deviations where variance layers "
+                    "exist (default: the render's, else 0 = pure L1)")
+        ->check(CLI::NonNegativeNumber);
     cmd->add_option("--iterations", options->iterations,
                     "l2: max CG iterations, l1: IRLS iterations, cv: iterations")
         ->check(CLI::PositiveNumber);

@@ -28,9 +28,17 @@ inline double norm3(double a, double b, double c) {
 /// changes neither the minimiser nor the Jacobi-preconditioned CG iterates nor the relative
 /// residual; it only guards float range there, which double does not need, so we skip it.
 double objective_and_weights(const detail::CompiledGraph& g, double alpha,
-                             const std::vector<double>& xs, double rho, detail::SystemWeights& w,
-                             std::size_t block) {
+                             const std::vector<double>& xs, double rho, double huber_k,
+                             detail::SystemWeights& w, std::size_t block) {
     const std::size_t n = g.pixels;
+    // Huber's threshold of a row with per-channel variance v (reconstruct_config.h): the RGB
+    // norm of its noise is about sqrt(3 v). 0 (pure L1) when off or unknown; the objective
+    // reported stays the L1 one (it only decides when to stop).
+    const auto delta = [huber_k](const std::vector<float>& variance, std::size_t k) {
+        if (huber_k <= 0.0 || variance.empty()) return 0.0;
+        const double v = variance[k];
+        return std::isfinite(v) && v > 0.0 ? huber_k * std::sqrt(3.0 * v) : 0.0;
+    };
     const auto width = static_cast<std::size_t>(g.width);
     const double* x = xs.data();
     const auto pixel_part = detail::reduce_blocks<1>(n, block, [&](std::size_t b, std::size_t e) {
@@ -43,18 +51,21 @@ double objective_and_weights(const detail::CompiledGraph& g, double alpha,
                 sum += r;
                 w.screen[i] = alpha * alpha / (r + rho);
             }
-            const auto lattice = [&](float w0, std::size_t j, const float* d, float& out) {
+            const auto lattice = [&](float w0, std::size_t j, const float* d, float& out,
+                                     double delta_e) {
                 if (w0 == 0.f) return;
                 const double* xj = x + 3 * j;
                 const double r =
                     norm3(xj[0] - xi[0] - d[0], xj[1] - xi[1] - d[1], xj[2] - xi[2] - d[2]);
                 sum += w0 * r;
-                out = static_cast<float>(w0 / (r + rho));
+                out = static_cast<float>(w0 / (std::max(r, delta_e) + rho));
             };
             if (i + 1 < n)
-                lattice(g.right_weight[i], i + 1, &g.right_difference[3 * i], w.right[i]);
+                lattice(g.right_weight[i], i + 1, &g.right_difference[3 * i], w.right[i],
+                        delta(g.right_variance, i));
             if (i + width < n)
-                lattice(g.down_weight[i], i + width, &g.down_difference[3 * i], w.down[i]);
+                lattice(g.down_weight[i], i + width, &g.down_difference[3 * i], w.down[i],
+                        delta(g.down_variance, i));
         }
         return std::array<double, 1>{sum};
     });
@@ -72,7 +83,8 @@ double objective_and_weights(const detail::CompiledGraph& g, double alpha,
                         norm3(xb[0] - xa[0] - d[0], xb[1] - xa[1] - d[1], xb[2] - xa[2] - d[2]);
                     const double w0 = g.irregular_weight[k];
                     sum += w0 * r;
-                    w.irregular[k] = static_cast<float>(w0 / (r + rho));
+                    w.irregular[k] = static_cast<float>(
+                        w0 / (std::max(r, delta(g.irregular_variance, k)) + rho));
                 }
                 return std::array<double, 1>{sum};
             });
@@ -87,6 +99,8 @@ ReconstructResult solve_l1(const ReconstructInput& input, const ReconstructConfi
     if (!std::isfinite(config.alpha) || config.alpha < 0.0)
         throw std::invalid_argument("reconstruct: alpha must be finite and >= 0");
     if (config.block_size <= 0) throw std::invalid_argument("reconstruct: block_size <= 0");
+    if (!(config.huber_k >= 0.0 && std::isfinite(config.huber_k)))
+        throw std::invalid_argument("reconstruct: huber_k must be finite and >= 0");
     if (!(config.irls_rho_min > 0.0))
         throw std::invalid_argument("reconstruct: irls_rho_min must be > 0");
     const auto block = static_cast<std::size_t>(config.block_size);
@@ -114,7 +128,8 @@ ReconstructResult solve_l1(const ReconstructInput& input, const ReconstructConfi
         // rho_{k+1} = rho0 gamma^k (NVIDIA L1D schedule), never below the floor.
         const double rho =
             std::max(config.irls_rho_min, config.irls_rho0 * std::pow(config.irls_gamma, k));
-        const double objective = objective_and_weights(graph, config.alpha, x, rho, weights, block);
+        const double objective =
+            objective_and_weights(graph, config.alpha, x, rho, config.huber_k, weights, block);
         stats.l1_objective.push_back(objective);
         if (k >= 1 && config.l1_objective_tolerance > 0.0) {
             const double previous = stats.l1_objective[static_cast<std::size_t>(k - 1)];

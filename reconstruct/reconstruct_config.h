@@ -19,6 +19,10 @@ std::string to_string(Method method);
 /// 0.0086 (GDPT) and 0.0063 to 0.0061 (GDMLT). Radius 4 was best for GDPT, 16-32 for GDMLT
 /// (its primal's noise is correlated over more pixels); 8 is within 25% of the best for both.
 inline constexpr int kDefaultCoarseRadius = 8;
+/// The CLI's default ReconstructConfig::huber_k for rendering: on GDPT renders at 16 s of the
+/// four shared scenes it lowered L1's relMSE by 11-30% (three seeds on two of them), with the
+/// mean unchanged (bench/reconstruct_cost.py, method "huber" against "l1").
+inline constexpr double kDefaultHuber = 1.345;
 
 struct ReconstructConfig {
     Method method = Method::l1;
@@ -55,6 +59,15 @@ struct ReconstructConfig {
     double irls_cg_tolerance = 1e-3;
     /// Stop early when |J_k - J_{k-1}| <= tolerance * J_{k-1}, J the L1 objective. 0 disables.
     double l1_objective_tolerance = 1e-4;
+    /// Huber instead of L1 where the noise is known (0: pure L1). A row whose variance layer
+    /// gives sigma (RGB norm of its noise, sqrt(3 var)) costs r^2 / (2 delta) for |r| <= delta
+    /// and |r| - delta / 2 beyond, delta = huber_k sigma (Huber 1964): residuals the noise
+    /// explains are averaged as in L2 instead of being pulled to the median, outliers still
+    /// count linearly. Its IRLS weight is 1 / max(|r|, delta) (L1's is 1 / |r|). 1.345 is the
+    /// classic constant (95% of L2's efficiency under Gaussian noise). Rows without a variance
+    /// stay L1, and so does the primal's data term (its "variance" may be the 1/sample_count
+    /// model, which has no scale).
+    double huber_k = 0.0;
 
     // --- Weighted control variates (Rousselle, Jarosz, Novak 2016) ----------------------------
     /// Jacobi-style iterations; 50 is the default of the public course code (Rousselle et al.
