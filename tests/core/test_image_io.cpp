@@ -7,9 +7,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "core/image/gradient_layers.h"
 #include "core/image/image_io.h"
 #include "core/scene/scene_desc.h"
+#include "tests/support/scene_fixtures.h"
 
 namespace gdmlt {
 namespace {
@@ -31,19 +31,9 @@ class ImageIoTest : public ::testing::Test {
     fs::path dir_;
 };
 
-Image ramp(int w, int h, int channels, float offset) {
-    Image img(w, h, channels);
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x)
-            for (int c = 0; c < channels; ++c)
-                img(x, y, c) = offset + 0.37f * static_cast<float>(x) -
-                               1.3e-3f * static_cast<float>(y * y) + 17.25f * static_cast<float>(c);
-    return img;
-}
-
 TEST_F(ImageIoTest, ExrRoundTripOfTwoLayersWithAttributesIsExact) {
-    Image main_img = ramp(13, 7, 3, 0.5f);
-    Image primal = ramp(13, 7, 3, -2.f);
+    Image main_img = test::ramp_image(13, 7, 3, 0.5f);
+    Image primal = test::ramp_image(13, 7, 3, -2.f);
     // Values that lossy or half-float storage would not keep exactly.
     main_img(0, 0, 0) = 1e30f;
     main_img(1, 0, 1) = std::numeric_limits<float>::denorm_min();
@@ -96,52 +86,6 @@ TEST_F(ImageIoTest, MissingFileIsAnInputErrorNamingTheFile) {
         EXPECT_NE(std::string(e.what()).find("does_not_exist.exr"), std::string::npos);
     }
     EXPECT_THROW(read_image(path), InputError);
-}
-
-TEST_F(ImageIoTest, GradientBuffersRoundTripThroughTheirExrLayersExactly) {
-    // Every layer `gdmlt reconstruct` needs to reproduce a render's solve comes back bit for
-    // bit, including infinite variances (pixels with fewer than 2 samples); dropping any of
-    // them from gradient_layers or gradient_buffers_from_layers fails here.
-    const int w = 9, h = 6;
-    GradientBuffers b;
-    b.primal = ramp(w, h, 3, 0.25f);
-    b.dx = ramp(w, h, 3, -1.f);
-    b.dy = ramp(w, h, 3, 2.f);
-    b.very_direct = ramp(w, h, 3, 5.f);
-    b.sample_count = ramp(w, h, 1, 16.f);
-    b.primal_variance = ramp(w, h, 1, 1e-3f);
-    b.primal_variance(4, 2) = std::numeric_limits<float>::infinity();
-    b.dx_variance = ramp(w, h, 1, 3e-3f);
-    b.dy_variance = ramp(w, h, 3, 7e-3f);  // the per-channel form comes back as R, G, B
-    const std::string path = (dir_ / "raw.exr").string();
-    write_exr(path, gradient_layers(b));
-    const GradientBuffers r = gradient_buffers_from_layers(read_exr(path), path);
-    EXPECT_EQ(r.primal, b.primal);
-    EXPECT_EQ(r.dx, b.dx);
-    EXPECT_EQ(r.dy, b.dy);
-    EXPECT_EQ(r.very_direct, b.very_direct);
-    EXPECT_EQ(r.sample_count, b.sample_count);
-    EXPECT_EQ(r.primal_variance, b.primal_variance);
-    EXPECT_EQ(r.dx_variance, b.dx_variance);
-    EXPECT_EQ(r.dy_variance, b.dy_variance);
-
-    // Absent layers stay absent (GDMLT: no sample counts, no variances).
-    GradientBuffers chain;
-    chain.primal = b.primal;
-    chain.dx = b.dx;
-    const std::string chain_path = (dir_ / "chain.exr").string();
-    write_exr(chain_path, gradient_layers(chain));
-    const GradientBuffers c = gradient_buffers_from_layers(read_exr(chain_path), chain_path);
-    EXPECT_EQ(c.dx, chain.dx);
-    EXPECT_TRUE(c.dy.pixels.empty());
-    EXPECT_TRUE(c.sample_count.pixels.empty());
-    EXPECT_TRUE(c.primal_variance.pixels.empty());
-    EXPECT_TRUE(c.dx_variance.pixels.empty());
-
-    // (Graphs with extra edges: tests/core/test_gradient_layers.cpp.)
-    // A file without a primal is not a gradient-domain render.
-    EXPECT_THROW(gradient_buffers_from_layers({{"dx", {"R", "G", "B"}, b.dx}}, "x.exr"),
-                 InputError);
 }
 
 TEST(Srgb, TransferFunctionsAreInversesOfEachOther) {

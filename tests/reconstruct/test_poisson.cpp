@@ -351,23 +351,30 @@ TEST(PoissonL1, ExactDifferencesRecoverTheImageOnTheLatticeAndARandomGraph) {
     }
 }
 
-TEST(PoissonL1, OutlierDifferencesStayLocalWhileL2SpreadsThem) {
-    // Noisy primal, mildly noisy differences, and 12 edges with huge outliers (+30, as a
-    // firefly-like failed shift would give). Measured (64x64): clean L1 and L2 RMSE 0.0100;
-    // with the outliers L2 spreads each into a dipole over many pixels (RMSE 0.79) while L1
-    // stays at 0.0101. Asserted with wide margins: L1 <= 2x clean, L2 >= 4x L1.
+/// A 64x64 test image with a noisy primal (sigma 0.1, seed `seed`), its exact differences plus
+/// Gaussian noise of `sigma` (seed `seed + 1`), and the same with 12 differences off by +30 (as
+/// a firefly-like failed shift would give).
+struct OutlierCase {
+    Image image;
+    ReconstructInput clean, outliers;
+};
+OutlierCase outlier_case(double sigma, std::uint32_t seed) {
     const int w = 64, h = 64;
-    const Image img = test_image(w, h);
-    const Image primal = add_noise(img, 0.1, 31);
-    ReconstructInput clean{make_lattice_graph(w, h), primal, {}};
-    set_differences_from_image(clean.graph, img);
-    Noise noise(32);
-    for (float& d : clean.graph.difference) d += static_cast<float>(0.01 * noise.gaussian());
-    ReconstructInput outliers = clean;
+    OutlierCase o{test_image(w, h), {}, {}};
+    o.clean = ReconstructInput{make_lattice_graph(w, h), add_noise(o.image, 0.1, seed), {}};
+    set_differences_from_image(o.clean.graph, o.image);
+    Noise noise(seed + 1);
+    for (float& d : o.clean.graph.difference) d += static_cast<float>(sigma * noise.gaussian());
+    o.outliers = o.clean;
     for (int k = 0; k < 12; ++k) {
-        const std::size_t e = noise.index(static_cast<std::uint32_t>(clean.graph.edge_count()));
-        for (int c = 0; c < 3; ++c) outliers.graph.difference[3 * e + c] += 30.f;
+        const std::size_t e = noise.index(static_cast<std::uint32_t>(o.clean.graph.edge_count()));
+        for (int c = 0; c < 3; ++c) o.outliers.graph.difference[3 * e + c] += 30.f;
     }
+    return o;
+}
+
+/// L1 solved to convergence (no early stop), so that methods compare, not stopping rules.
+ReconstructConfig converged_l1() {
     ReconstructConfig c;
     c.alpha = 0.2;
     c.irls_iterations = 20;
@@ -375,6 +382,18 @@ TEST(PoissonL1, OutlierDifferencesStayLocalWhileL2SpreadsThem) {
     c.irls_cg_tolerance = 1e-4;
     c.irls_cg_iterations = 200;
     c.l1_objective_tolerance = 0.0;
+    return c;
+}
+
+TEST(PoissonL1, OutlierDifferencesStayLocalWhileL2SpreadsThem) {
+    // Noisy primal, mildly noisy differences, and 12 edges with huge outliers (+30, as a
+    // firefly-like failed shift would give). Measured (64x64): clean L1 and L2 RMSE 0.0100;
+    // with the outliers L2 spreads each into a dipole over many pixels (RMSE 0.79) while L1
+    // stays at 0.0101. Asserted with wide margins: L1 <= 2x clean, L2 >= 4x L1.
+    const OutlierCase o = outlier_case(0.01, 31);
+    const Image& img = o.image;
+    const ReconstructInput &clean = o.clean, &outliers = o.outliers;
+    const ReconstructConfig c = converged_l1();
     const double l1_clean = rmse(solve_l1(clean, c).image, img);
     const double l2_clean = rmse(solve_l2(clean, c).image, img);
     const double l1_out = rmse(solve_l1(outliers, c).image, img);
@@ -398,25 +417,12 @@ TEST(PoissonL1, HuberWithKnownNoiseAveragesLikeL2AndStaysRobustLikeL1) {
     // 0.0320; with the outliers Huber 0.0321, L2 0.78. Asserted: Huber clean <= 0.95 L1 clean
     // (measured 0.875; Huber switched off gives exactly 1), Huber with outliers <= 1.3x its
     // clean value, L2 with outliers >= 4x Huber's.
-    const int w = 64, h = 64;
-    const Image img = test_image(w, h);
-    ReconstructInput clean{make_lattice_graph(w, h), add_noise(img, 0.1, 51), {}};
-    set_differences_from_image(clean.graph, img);
-    Noise noise(52);
-    for (float& d : clean.graph.difference) d += static_cast<float>(0.05 * noise.gaussian());
-    clean.graph.variance.assign(clean.graph.edge_count(), 0.05f * 0.05f);
-    ReconstructInput outliers = clean;
-    for (int k = 0; k < 12; ++k) {
-        const std::size_t e = noise.index(static_cast<std::uint32_t>(clean.graph.edge_count()));
-        for (int c = 0; c < 3; ++c) outliers.graph.difference[3 * e + c] += 30.f;
-    }
-    ReconstructConfig c;
-    c.alpha = 0.2;
-    c.irls_iterations = 20;
-    c.cg_tolerance = 1e-6;
-    c.irls_cg_tolerance = 1e-4;
-    c.irls_cg_iterations = 200;
-    c.l1_objective_tolerance = 0.0;
+    OutlierCase o = outlier_case(0.05, 51);
+    const Image& img = o.image;
+    for (ReconstructInput* in : {&o.clean, &o.outliers})
+        in->graph.variance.assign(in->graph.edge_count(), 0.05f * 0.05f);
+    const ReconstructInput &clean = o.clean, &outliers = o.outliers;
+    ReconstructConfig c = converged_l1();
     const double l1_clean = rmse(solve_l1(clean, c).image, img);
     const double l2_clean = rmse(solve_l2(clean, c).image, img);
     const double l2_out = rmse(solve_l2(outliers, c).image, img);

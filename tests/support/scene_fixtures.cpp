@@ -100,4 +100,14 @@ double mean_luminance(const Image& image) {
     return sum / static_cast<double>(image.pixel_count());
 }
 
+Image ramp_image(int w, int h, int channels, float offset) {
+    Image img(w, h, channels);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            for (int c = 0; c < channels; ++c)
+                img(x, y, c) = offset + 0.37f * static_cast<float>(x) -
+                               1.3e-3f * static_cast<float>(y * y) + 17.25f * static_cast<float>(c);
+    return img;
+}
+
 }  // namespace gdmlt::test

@@ -39,4 +39,7 @@ RenderOutput render_unbounded(const Scene& scene, int spp, std::uint64_t seed);
 /// smaller than 2% of the expected value (otherwise the test could not fail).
 void expect_image_mean(const Image& image, const Rgb& expected, double relative_model_error);
 
+/// A smooth image with distinct values in every pixel and channel (exact round-trip tests).
+Image ramp_image(int w, int h, int channels, float offset);
+
 }  // namespace gdmlt::test
