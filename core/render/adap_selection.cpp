@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "core/render/adap_selection.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -110,11 +112,15 @@ NeighbourSet select_adap_neighbours(const FeatureImages& f, const AdapSettings& 
         int order;  // position in `offsets`
         int other;
     };
-    std::vector<std::pair<std::int32_t, std::int32_t>> chosen;
-    std::vector<Candidate> candidates;
-    candidates.reserve(offsets.size());
+    // Rows in parallel, each into its own list (the result is sorted below, so it does not
+    // depend on the thread count).
     const auto k = static_cast<std::size_t>(s.neighbours);
-    for (int y = 0; y < height; ++y)
+    std::vector<std::vector<std::pair<std::int32_t, std::int32_t>>> chosen_per_row(
+        static_cast<std::size_t>(height));
+    tbb::parallel_for(0, height, [&](int y) {
+        std::vector<Candidate> candidates;
+        candidates.reserve(offsets.size());
+        auto& chosen_here = chosen_per_row[static_cast<std::size_t>(y)];
         for (int x = 0; x < width; ++x) {
             const int i = index(x, y);
             candidates.clear();
@@ -136,9 +142,12 @@ NeighbourSet select_adap_neighbours(const FeatureImages& f, const AdapSettings& 
                 candidates.begin(), candidates.begin() + static_cast<long>(keep), candidates.end(),
                 [&](const Candidate& a, const Candidate& b) { return key(a) < key(b); });
             for (std::size_t c = 0; c < keep; ++c)
-                chosen.emplace_back(std::min(i, candidates[c].other),
-                                    std::max(i, candidates[c].other));
+                chosen_here.emplace_back(std::min(i, candidates[c].other),
+                                         std::max(i, candidates[c].other));
         }
+    });
+    std::vector<std::pair<std::int32_t, std::int32_t>> chosen;
+    for (const auto& row : chosen_per_row) chosen.insert(chosen.end(), row.begin(), row.end());
     std::sort(chosen.begin(), chosen.end());
     std::vector<std::pair<std::int32_t, std::int32_t>> pairs;
     for (std::size_t a = 0; a < chosen.size();) {
