@@ -18,12 +18,10 @@ void read_chain_settings(const IntegratorSettings& integrator, PropertyReader* p
     s.mutation.s2 = props->get_float("mutation_size_high", s.mutation.s2);
     s.mutation.image_s2_pixels =
         props->get_float("image_mutation_size", s.mutation.image_s2_pixels);
-    s.chains = static_cast<int>(props->get_int("chains", s.chains));
+    s.chains = props->get_int32("chains", s.chains);
     // Mitsuba 0.6 calls the bootstrap "luminanceSamples".
-    s.bootstrap_samples =
-        static_cast<int>(props->get_int("luminance_samples", s.bootstrap_samples));
-    s.bootstrap_samples =
-        static_cast<int>(props->get_int("bootstrap_samples", s.bootstrap_samples));
+    s.bootstrap_samples = props->get_int32("luminance_samples", s.bootstrap_samples);
+    s.bootstrap_samples = props->get_int32("bootstrap_samples", s.bootstrap_samples);
     s.mutations_per_pixel = props->get_float("mutations_per_pixel", s.mutations_per_pixel);
     s.kelemen_weights = props->get_bool("kelemen_style_weights", s.kelemen_weights);
 }

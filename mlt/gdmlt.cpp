@@ -193,8 +193,7 @@ GdmltSettings gdmlt_settings_from_scene(const IntegratorSettings& integrator) {
         props.get_float("bootstrap_relative_error", s.bootstrap_relative_error);
     s.primal_weight = props.get_float("primal_weight", s.primal_weight);
     s.primal_from_offsets = props.get_bool("primal_from_offsets", s.primal_from_offsets);
-    s.very_direct_samples =
-        static_cast<int>(props.get_int("very_direct_samples", s.very_direct_samples));
+    s.very_direct_samples = props.get_int32("very_direct_samples", s.very_direct_samples);
     props.check_all_read();
     validate_gdmlt_settings(s, integrator.desc.loc);
     return s;

@@ -57,7 +57,7 @@ PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator) 
     }
     PropertyReader props(integrator.desc);
     read_chain_settings(integrator, &props, s);
-    s.direct_samples = static_cast<int>(props.get_int("direct_samples", s.direct_samples));
+    s.direct_samples = props.get_int32("direct_samples", s.direct_samples);
     props.check_all_read();
     validate_pssmlt_settings(s, integrator.desc.loc);
     return s;

@@ -19,6 +19,10 @@ class PropertyReader {
     bool has(const std::string& name) const { return object_.find(name) != nullptr; }
     double get_float(const std::string& name, double fallback);
     std::int64_t get_int(const std::string& name, std::int64_t fallback);
+    /// get_int for an int: out of 32-bit range is an InputError (checked_int32).
+    int get_int32(const std::string& name, int fallback) {
+        return checked_int32(get_int(name, fallback), name, loc_of(name));
+    }
     bool get_bool(const std::string& name, bool fallback);
     std::string get_string(const std::string& name, const std::string& fallback);
     /// Location of a property (of the element when absent), for errors about its value.

@@ -80,6 +80,9 @@ class Properties {
         if (const auto* i = std::get_if<std::int64_t>(&p->value)) return *i;
         throw mismatch(*p, "integer");
     }
+    int get_int32(const std::string& name, int fallback) {
+        return checked_int32(get_int(name, fallback), name, loc_of(name));
+    }
     bool get_bool(const std::string& name, bool fallback) {
         const Property* p = take(name);
         if (!p) return fallback;
@@ -427,8 +430,8 @@ struct Builder {
             integrator.type = "path";
         }
         Properties props(obj, diagnostics);
-        integrator.max_depth = static_cast<int>(props.get_int("max_depth", -1));
-        integrator.rr_depth = static_cast<int>(props.get_int("rr_depth", 5));
+        integrator.max_depth = props.get_int32("max_depth", -1);
+        integrator.rr_depth = props.get_int32("rr_depth", 5);
         integrator.hide_emitters = props.get_bool("hide_emitters", false);
         if (integrator.max_depth < -1 || integrator.max_depth == 0)
             throw InputError(props.loc_of("max_depth"), "max_depth must be -1 or at least 1");
@@ -482,19 +485,22 @@ struct Builder {
                                 "unsupported film '" + obj.type + "' (supported: hdrfilm)");
         Properties props(obj, diagnostics);
         Film film;
-        film.width = static_cast<int>(props.get_int("width", 768));
-        film.height = static_cast<int>(props.get_int("height", 576));
+        film.width = props.get_int32("width", 768);
+        film.height = props.get_int32("height", 576);
         if (film.width < 1 || film.height < 1 || film.width > 1 << 16 || film.height > 1 << 16)
             throw InputError(obj.loc, "film size must be between 1 and 65536 pixels");
-        film.crop_offset_x = static_cast<int>(props.get_int("crop_offset_x", 0));
-        film.crop_offset_y = static_cast<int>(props.get_int("crop_offset_y", 0));
-        film.crop_width =
-            static_cast<int>(props.get_int("crop_width", film.width - film.crop_offset_x));
-        film.crop_height =
-            static_cast<int>(props.get_int("crop_height", film.height - film.crop_offset_y));
+        film.crop_offset_x = props.get_int32("crop_offset_x", 0);
+        film.crop_offset_y = props.get_int32("crop_offset_y", 0);
+        // Checked before the default crop size subtracts them (no int overflow).
+        if (film.crop_offset_x < 0 || film.crop_offset_y < 0 || film.crop_offset_x >= film.width ||
+            film.crop_offset_y >= film.height)
+            throw InputError(obj.loc, "crop window lies outside the film");
+        film.crop_width = props.get_int32("crop_width", film.width - film.crop_offset_x);
+        film.crop_height = props.get_int32("crop_height", film.height - film.crop_offset_y);
         if (film.crop_offset_x < 0 || film.crop_offset_y < 0 || film.crop_width < 1 ||
-            film.crop_height < 1 || film.crop_offset_x + film.crop_width > film.width ||
-            film.crop_offset_y + film.crop_height > film.height)
+            film.crop_height < 1 ||
+            std::int64_t{film.crop_offset_x} + film.crop_width > film.width ||
+            std::int64_t{film.crop_offset_y} + film.crop_height > film.height)
             throw InputError(obj.loc, "crop window lies outside the film");
         // Output formats are ours to choose (float32 RGB EXR); accept Mitsuba's spellings.
         for (const char* name : {"pixel_format", "component_format", "file_format", "banner",
@@ -525,12 +531,12 @@ struct Builder {
             diagnostics.unknown(obj.loc,
                                 "unsupported sampler '" + obj.type + "' (supported: independent)");
         Properties props(obj, diagnostics);
-        const std::int64_t spp = props.get_int("sample_count", 4);
+        const int spp = props.get_int32("sample_count", 4);
         const std::int64_t seed = props.get_int("seed", 0);
         if (spp < 1)
             throw InputError(props.loc_of("sample_count"), "sample_count must be positive");
         props.check_all_used();
-        sampler.sample_count = static_cast<int>(spp);
+        sampler.sample_count = spp;
         sampler.seed = static_cast<std::uint64_t>(seed);
     }
 

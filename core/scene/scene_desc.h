@@ -11,6 +11,7 @@
 //  - transforms are composed into one 4x4 matrix (world_from_object), as Mitsuba composes them;
 //  - `<ref id=.../>` becomes a child entry pointing at the referenced object (shared, not copied).
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <optional>
 #include <stdexcept>
@@ -39,6 +40,15 @@ class InputError : public std::runtime_error {
     InputError(const FileLoc& loc, const std::string& what);
     explicit InputError(const std::string& what) : std::runtime_error(what) {}
 };
+
+/// An integer property that a 32-bit int must hold (sizes, depths, counts): out of range is an
+/// error at `loc`, never a silent truncation (sample_count=2147483648 once rendered 1 spp).
+inline int checked_int32(std::int64_t value, const std::string& name, const FileLoc& loc) {
+    if (value < std::numeric_limits<int>::min() || value > std::numeric_limits<int>::max())
+        throw InputError(
+            loc, "'" + name + "' = " + std::to_string(value) + " does not fit a 32-bit integer");
+    return static_cast<int>(value);
+}
 
 /// `<rgb>` / `<srgb>` value. `srgb` is true when the file gave sRGB-encoded values
 /// (0.6 `<srgb>`); the builder linearises.

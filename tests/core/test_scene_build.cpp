@@ -90,6 +90,39 @@ TEST(SceneBuild, NonUniformScaleOfASphereIsAnError) {
     EXPECT_NE(message.find("similarity"), std::string::npos) << message;
 }
 
+/// A scene whose sensor carries `sampler` and `film` bodies, and an integrator element.
+std::string sensor_with(const std::string& sampler, const std::string& film,
+                        const std::string& integrator = "") {
+    return integrator + R"(<sensor type="perspective"><sampler type="independent">)" + sampler +
+           R"(</sampler><film type="hdrfilm">)" + film +
+           R"(<rfilter type="box"/></film></sensor>)" + kLight;
+}
+
+TEST(SceneBuild, IntegersBeyond32BitsAreErrorsNotTruncations) {
+    // Each of these once became a small number silently (2^31 spp -> 1, 2^32 + 1 -> 1).
+    const std::string w = R"(<integer name="width" value="8"/><integer name="height" value="8"/>)";
+    for (
+        const std::string& bad :
+        {sensor_with(R"(<integer name="sample_count" value="2147483648"/>)", w),
+         sensor_with("", R"(<integer name="width" value="4294967297"/>)"),
+         sensor_with(
+             "", w,
+             R"(<integrator type="path"><integer name="max_depth" value="4294967297"/></integrator>)"),
+         sensor_with("", w + R"(<integer name="crop_offset_x" value="2147483647"/>)"),
+         sensor_with("", w + R"(<integer name="crop_offset_x" value="-2147483648"/>)")}) {
+        const std::string message = build_error(bad);
+        EXPECT_FALSE(message.empty()) << bad;
+        EXPECT_NE(message.find("test.xml:"), std::string::npos) << message;
+    }
+    const std::string message =
+        build_error(sensor_with(R"(<integer name="sample_count" value="2147483648"/>)", w));
+    EXPECT_NE(message.find("sample_count"), std::string::npos) << message;
+    EXPECT_NE(message.find("32-bit"), std::string::npos) << message;
+    // The largest int still builds.
+    EXPECT_EQ(build_error(sensor_with(R"(<integer name="sample_count" value="2147483647"/>)", w)),
+              "");
+}
+
 TEST(SceneBuild, RectangleFacesAlongItsTransformedNormal) {
     // Mitsuba's rectangle spans [-1,1]^2 at z = 0 facing +z; rotating by -90 degrees about x
     // turns it into a floor at y = -1 facing +y.
