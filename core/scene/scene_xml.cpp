@@ -454,6 +454,13 @@ class SceneParser {
 
     int parse_object(const pugi::xml_node& element, const FileContext& context) {
         const FileLoc loc = context.source->loc_of(element);
+        // Objects nest through recursion here and in the scene builder: a bound keeps a
+        // hostile file (a <shape> nested 6000 deep crashed with a stack overflow) an input
+        // error. Real scenes nest a handful of levels (shape > bsdf > texture).
+        if (object_depth_ >= kMaxObjectNesting)
+            throw InputError(loc, "objects nested more than " + std::to_string(kMaxObjectNesting) +
+                                      " levels deep");
+        ++object_depth_;
         ObjectDesc desc;
         desc.tag = element.name();
         desc.type = required_attribute(element, "type", loc);
@@ -462,6 +469,7 @@ class SceneParser {
         const int index = static_cast<int>(scene_.objects.size());
         scene_.objects.push_back(std::move(desc));
         parse_children(element, context, index);
+        --object_depth_;
         // Registered after the children so that an object cannot reference itself or an
         // ancestor (which would make the object graph cyclic).
         if (!object(index).id.empty()) register_id(object(index).id, index, loc);
@@ -681,6 +689,8 @@ class SceneParser {
     std::map<std::string, std::string> parameters_;  // -D defines, then <default>s
     std::map<std::string, int> ids_;                 // id or alias -> object index
     std::vector<std::string> include_stack_;         // files being parsed, outermost first
+    static constexpr int kMaxObjectNesting = 256;
+    int object_depth_ = 0;  // objects being parsed, includes counted through
 };
 
 }  // namespace

@@ -107,6 +107,20 @@ std::string input_error_message(const std::string& xml, const std::string& file,
     return {};
 }
 
+TEST(SceneXml, DeeplyNestedObjectsAreAnInputErrorNotAStackOverflow) {
+    // 6000 nested shapes once overflowed the stack (exit 139). 256 levels are allowed; the
+    // 257th object is reported at its own line.
+    const auto nested = [](int levels) {
+        std::string xml = "<scene version=\"3.0.0\">\n";
+        for (int i = 0; i < levels; ++i) xml += "<shape type=\"sphere\">\n";
+        for (int i = 0; i < levels; ++i) xml += "</shape>";
+        return xml + "</scene>";
+    };
+    const std::string message = input_error_message(nested(6000), "deep.xml", 2 + 256);
+    EXPECT_NE(message.find("nested"), std::string::npos) << message;
+    EXPECT_NO_THROW(parse_scene_string(nested(256), "ok.xml", {}));
+}
+
 // --- Transforms ---------------------------------------------------------------------------
 
 TEST(SceneXml, ComposesTransformsInMitsubaOrder) {
