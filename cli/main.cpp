@@ -557,7 +557,8 @@ int run_render(const RenderOptions& options) {
             {"selection_s", selection_s},
             {"edges", adap_set->edges().size()},
             {"lattice_edges",
-             NeighbourSet::lattice(film.crop_width, film.crop_height).edges().size()},
+             static_cast<std::size_t>(film.crop_width - 1) * film.crop_height +
+                 static_cast<std::size_t>(film.crop_width) * (film.crop_height - 1)},
             {"mean_links_per_pixel", static_cast<double>(adap_set->link_count()) /
                                          static_cast<double>(adap_set->pixel_count())},
             {"max_links_per_pixel", adap_set->max_links()}};

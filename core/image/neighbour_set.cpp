@@ -142,11 +142,7 @@ void store_edge_differences(const NeighbourSet& set, std::span<const RgbD> diffe
             (layer == &buffers.dx ? buffers.dx_variance : buffers.dy_variance)(from % w, from / w) =
                 static_cast<float>(variances[e]);
     }
-    const auto key = [&](std::size_t e) {
-        const GradientEdge& edge = set.edges()[e];
-        const std::int32_t from = std::min(edge.from, edge.to), to = std::max(edge.from, edge.to);
-        return std::tuple(to / w - from / w, to % w - from % w, from);
-    };
+    const auto key = [&](std::size_t e) { return canonical_edge_key(set.edges()[e], w); };
     std::sort(extra.begin(), extra.end(),
               [&](std::size_t a, std::size_t b) { return key(a) < key(b); });
     for (const std::size_t e : extra) {

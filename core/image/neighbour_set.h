@@ -10,9 +10,11 @@
 //
 // The set is frozen before sampling starts: the estimator stays unbiased because which offsets
 // a pixel uses never depends on the samples.
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
+#include <tuple>
 #include <vector>
 
 #include "core/image/gradient_buffers.h"
@@ -70,6 +72,14 @@ class NeighbourSet {
     std::vector<std::array<std::uint32_t, 2>> edge_links_;
     std::size_t max_links_ = 0;
 };
+
+/// The canonical order of edges (a function of the edge set alone, so that an EXR round trip
+/// keeps it): by offset (dy, then dx) from the smaller pixel index to the larger, then by that
+/// pixel. Compare keys with <.
+inline std::tuple<int, int, int> canonical_edge_key(const GradientEdge& edge, int width) {
+    const std::int32_t from = std::min(edge.from, edge.to), to = std::max(edge.from, edge.to);
+    return {to / width - from / width, to % width - from % width, from};
+}
 
 /// Writes per-edge differences (RGB, I(to) - I(from), in the order of `set.edges()`) into the
 /// buffers: when the set has every edge (x,y)->(x+1,y), they fill dx(x,y) (likewise dy);

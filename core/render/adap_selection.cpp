@@ -198,12 +198,9 @@ NeighbourSet select_adap_neighbours(const FeatureImages& f, const AdapSettings& 
     std::vector<GradientEdge> edges;
     edges.reserve(pairs.size());
     for (const auto& [a, b] : pairs) edges.push_back({a, b});
-    const auto key = [width](const GradientEdge& e) {
-        const int dx = e.to % width - e.from % width, dy = e.to / width - e.from / width;
-        return std::tuple(dy, dx, e.from);
-    };
-    std::sort(edges.begin(), edges.end(),
-              [&](const GradientEdge& a, const GradientEdge& b) { return key(a) < key(b); });
+    std::sort(edges.begin(), edges.end(), [width](const GradientEdge& a, const GradientEdge& b) {
+        return canonical_edge_key(a, width) < canonical_edge_key(b, width);
+    });
     return NeighbourSet::from_edges(width, height, std::move(edges));
 }
 
