@@ -55,7 +55,11 @@ struct Chain {
     std::uint64_t nonfinite = 0;
     ChainCounters counters;
     std::size_t start_index = 0;  // the bootstrap sample it started from
-    std::vector<QueuedSplat> queue;
+    // Large steps are independent uniform samples of f: their targets refine b (run_chains).
+    double large_target_sum = 0.0, large_target_sum2 = 0.0;
+    // Splats of the chain part (weights with the bootstrap's b, rescaled once b is final) and
+    // of Kelemen's large-step part (independent of b).
+    std::vector<QueuedSplat> queue, large_queue;
     std::vector<std::uint32_t> visits;  // density slot of the state after each iteration
 };
 
@@ -130,11 +134,11 @@ void append_independent_targets(const ChainTarget& target, const ChainRunnerSett
         }
 }
 
-void queue_splats(Chain& chain, const ChainState& state, double weight) {
+void queue_splats(std::vector<QueuedSplat>& queue, const ChainState& state, double weight) {
     if (!(weight > 0.0)) return;
     for (const Splat& s : state.splats) {
         const Rgb v = s.value * static_cast<float>(weight);
-        chain.queue.push_back({s.slot, {v[0], v[1], v[2]}});
+        queue.push_back({s.slot, {v[0], v[1], v[2]}});
     }
 }
 
@@ -160,16 +164,28 @@ void run_chain(Chain& chain, const ChainTarget& target, const ChainRunnerSetting
         // Splat both states with expected-value weights (Veach 1997, sec. 11.5), optionally
         // MIS-combined with the large steps as an independent estimator (Kelemen et al. 2002):
         // proposal (a + [large]) g(y) / (f(y)/b + p_L), current (1 - a) g(x) / (f(x)/b + p_L).
+        // The a and (1 - a) terms are the chain's: b g / f times the MIS weight
+        // (f/b) / (f/b + p_L). Any b in the MIS weights keeps them summing to 1, so the chain's
+        // terms scale with b exactly and run_chains rescales them to the final b; the [large]
+        // term is the uniform estimator g / p_L times its MIS weight and does not involve b.
         if (settings.kelemen_weights) {
-            if (proposal.target > 0.0)
-                queue_splats(chain, proposal,
-                             (accept + (large ? 1.0 : 0.0)) / (proposal.target / b + p_large));
+            if (proposal.target > 0.0) {
+                const double mis = 1.0 / (proposal.target / b + p_large);
+                queue_splats(chain.queue, proposal, accept * mis);
+                if (large) queue_splats(chain.large_queue, proposal, mis);
+            }
             if (current.target > 0.0 && accept < 1.0)
-                queue_splats(chain, current, (1.0 - accept) / (current.target / b + p_large));
+                queue_splats(chain.queue, current, (1.0 - accept) / (current.target / b + p_large));
         } else {
-            if (proposal.target > 0.0) queue_splats(chain, proposal, accept * b / proposal.target);
+            if (proposal.target > 0.0)
+                queue_splats(chain.queue, proposal, accept * b / proposal.target);
             if (current.target > 0.0 && accept < 1.0)
-                queue_splats(chain, current, (1.0 - accept) * b / current.target);
+                queue_splats(chain.queue, current, (1.0 - accept) * b / current.target);
+        }
+        if (large) {
+            const double f = proposal.nonfinite ? 0.0 : proposal.target;
+            chain.large_target_sum += f;
+            chain.large_target_sum2 += f * f;
         }
 
         (large ? chain.large_proposed : chain.small_proposed) += 1;
@@ -202,7 +218,8 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
     ChainRunnerOutput out;
     ChainStats& stats = out.stats;
     stats.chains = chain_count;
-    std::vector<RgbD> accumulated(target.slot_count(), RgbD::Zero());
+    std::vector<RgbD> accumulated(target.slot_count(), RgbD::Zero());  // the chain part
+    std::vector<RgbD> accumulated_large;  // Kelemen's large-step part, when weighted so
     std::vector<std::uint64_t> visits(target.density_slot_count(), 0);
 
     // 1. Bootstrap (Kelemen et al. 2002, sec. 5): b from independent samples; chain start states
@@ -228,9 +245,9 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
                                    bootstrap, counters, stats.nonfinite_dropped);
         b_estimate = mean_of(bootstrap);
     }
-    stats.b = b_estimate.mean;
-    stats.b_standard_error = b_estimate.standard_error;
-    stats.bootstrap_samples = bootstrap.size();
+    stats.b = stats.b_bootstrap = b_estimate.mean;
+    stats.b_standard_error = stats.b_bootstrap_standard_error = b_estimate.standard_error;
+    stats.bootstrap_samples = stats.b_samples = bootstrap.size();
     stats.bootstrap_nonzero = b_estimate.nonzero;
     {
         std::vector<double> check;
@@ -303,13 +320,19 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
         const std::uint64_t this_round = std::min(round_size, per_chain_budget - per_chain_done);
         const Clock::time_point round_start = Clock::now();
         tbb::parallel_for(0, chain_count, [&](int c) {
-            run_chain(chains[static_cast<std::size_t>(c)], target, settings, stats.b, this_round,
-                      track_density, cancel);
+            run_chain(chains[static_cast<std::size_t>(c)], target, settings, stats.b_bootstrap,
+                      this_round, track_density, cancel);
         });
         for (Chain& chain : chains) {
             for (const QueuedSplat& q : chain.queue)
                 for (int k = 0; k < 3; ++k)
                     accumulated[q.slot][k] += static_cast<double>(q.value[k]);
+            if (!chain.large_queue.empty() && accumulated_large.empty())
+                accumulated_large.assign(accumulated.size(), RgbD::Zero());
+            for (const QueuedSplat& q : chain.large_queue)
+                for (int k = 0; k < 3; ++k)
+                    accumulated_large[q.slot][k] += static_cast<double>(q.value[k]);
+            chain.large_queue.clear();
             for (std::uint32_t v : chain.visits) ++visits[v];
             chain.queue.clear();
             chain.visits.clear();
@@ -361,9 +384,32 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
         const double sd = m.standard_error * std::sqrt(static_cast<double>(brightness.size()));
         stats.chain_brightness_relative_spread = m.mean > 0.0 ? sd / m.mean : 0.0;
     }
+    // The final b: the bootstrap's samples and every large step's (both uniform and
+    // independent; a chain's large steps outnumber the bootstrap at any budget beyond a few
+    // seconds). b sets the whole image's brightness: PSSMLT's image means at 16 s were 1-7%
+    // off with b from 100k bootstrap samples alone on caustic_glass_light.
+    {
+        double sum = 0.0, sum2 = 0.0;
+        for (double v : bootstrap) {
+            sum += v;
+            sum2 += v * v;
+        }
+        for (const Chain& c : chains) {  // chain order: deterministic
+            sum += c.large_target_sum;
+            sum2 += c.large_target_sum2;
+        }
+        const auto n = static_cast<double>(bootstrap.size() + stats.large_proposed);
+        stats.b_samples = bootstrap.size() + stats.large_proposed;
+        stats.b = sum / n;
+        stats.b_standard_error =
+            n > 1 ? std::sqrt(std::max(0.0, sum2 / n - stats.b * stats.b) / (n - 1)) : 0.0;
+    }
     if (stats.mutations > 0) {
         const double scale = 1.0 / static_cast<double>(stats.mutations);
-        for (RgbD& v : accumulated) v *= scale;
+        const double chain_scale = scale * stats.b / stats.b_bootstrap;
+        for (RgbD& v : accumulated) v *= chain_scale;
+        for (std::size_t i = 0; i < accumulated_large.size(); ++i)
+            accumulated[i] += accumulated_large[i] * scale;
     }
     for (const Chain& c : chains) out.final_density_slots.push_back(c.current.density_slot);
     out.estimate = std::move(accumulated);

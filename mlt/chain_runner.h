@@ -14,6 +14,8 @@
 //     integral of g du = E_chain[ g(u) b / f(u) ],
 // so each slot's accumulated splats divided by the number of mutations N estimate the integral
 // of that slot's g. Integrators turn that into pixel values (PSSMLT: times the pixel count).
+// b is only known from samples: the chains run with the bootstrap's, and the chain part of the
+// estimate (linear in b) is rescaled at the end to b from the bootstrap and all large steps.
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
@@ -124,9 +126,14 @@ struct ChainRunnerSettings {
 };
 
 struct ChainStats {
-    // Normalisation b = E_u[f(u)] over uniform primary samples.
+    // Normalisation b = E_u[f(u)] over uniform primary samples: the final estimate, from the
+    // bootstrap's samples and every large step's, which the estimate is scaled to.
     double b = 0.0;
     double b_standard_error = 0.0;
+    std::uint64_t b_samples = 0;
+    // The bootstrap's alone, which the chains' MIS weights used.
+    double b_bootstrap = 0.0;
+    double b_bootstrap_standard_error = 0.0;
     std::uint64_t bootstrap_samples = 0;
     std::uint64_t bootstrap_nonzero = 0;
     // An independent estimate of the same quantity, as a check of b (reported, not used).
