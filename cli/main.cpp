@@ -17,6 +17,7 @@
 
 #include "cli/progress.h"
 #include "cli/reconstruct_command.h"
+#include "cli/validators.h"
 #include "core/image/gradient_layers.h"
 #include "core/image/image_io.h"
 #include "core/render/adap_selection.h"
@@ -692,7 +693,8 @@ int main(int argc, char** argv) {
     render_cmd
         ->add_option("--time", render.time_s,
                      "Time budget in seconds (with --spp: whichever ends first)")
-        ->check(CLI::PositiveNumber);
+        ->check(CLI::PositiveNumber)
+        ->check(finite_number());
     (void)spp_opt;
     render_cmd->add_option("-t,--threads", render.threads, "Threads (default: all cores)")
         ->check(CLI::NonNegativeNumber);
@@ -705,25 +707,31 @@ int main(int argc, char** argv) {
                          "Unknown plugins/properties are warnings, not errors");
     render_cmd->add_flag("-q,--quiet", render.quiet, "No progress output");
     render_cmd->add_option("--p-large", render.p_large, "PSSMLT: large-step probability (0.3)")
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(CLI::Range(0.0, 1.0))
+        ->check(finite_number());
     render_cmd
         ->add_option("--mutation-size", render.mutation_size,
                      "PSSMLT: small-step sizes S1,S2 (1/1024,1/64)")
         ->delimiter(',')
-        ->expected(2);
-    render_cmd->add_option("--image-mutation-size", render.image_mutation_pixels,
-                           "PSSMLT: small-step size S2 of the image coordinates, in pixels");
+        ->expected(2)
+        ->check(finite_number());
+    render_cmd
+        ->add_option("--image-mutation-size", render.image_mutation_pixels,
+                     "PSSMLT: small-step size S2 of the image coordinates, in pixels")
+        ->check(finite_number());
     render_cmd->add_option("--chains", render.chains,
                            "PSSMLT/GDMLT: number of Markov chains (0: automatic)");
     render_cmd->add_option("--bootstrap", render.bootstrap,
                            "PSSMLT/GDMLT: bootstrap samples estimating b (100000)");
-    render_cmd->add_option("--mpp", render.mpp,
-                           "PSSMLT/GDMLT: mutations per pixel (64 / 16, or --spp)");
+    render_cmd
+        ->add_option("--mpp", render.mpp, "PSSMLT/GDMLT: mutations per pixel (64 / 16, or --spp)")
+        ->check(finite_number());
     render_cmd->add_option("--direct-samples", render.direct_samples,
                            "PSSMLT: render direct illumination separately with N path-traced spp");
     render_cmd->add_option("--reconstruct", render.reconstruct_method,
                            "Gradient domain: l1 | l2 | cv (l1)");
-    render_cmd->add_option("--alpha", render.alpha, "Gradient domain: weight of the primal (0.2)");
+    render_cmd->add_option("--alpha", render.alpha, "Gradient domain: weight of the primal (0.2)")
+        ->check(finite_number());
     render_cmd
         ->add_option("--coarse-radius", render.coarse_radius,
                      "Gradient domain: restore the primal's scales beyond this many pixels "
@@ -733,19 +741,24 @@ int main(int argc, char** argv) {
         ->add_option("--huber", render.huber,
                      "Gradient domain, l1: Huber threshold in noise standard deviations where the "
                      "render has variance layers (gdpt; 1.345; 0 = pure L1)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(CLI::NonNegativeNumber)
+        ->check(finite_number());
     render_cmd->add_option("--shift", render.shift,
                            "Gradient domain: auto | reconnect | halfvector | replay");
-    render_cmd->add_option("--primal-weight", render.primal_weight,
-                           "GDMLT: weight w of the primal in the target sum|D| + w Y(C) (1)");
+    render_cmd
+        ->add_option("--primal-weight", render.primal_weight,
+                     "GDMLT: weight w of the primal in the target sum|D| + w Y(C) (1)")
+        ->check(finite_number());
     render_cmd->add_option("--primal-from-offsets", render.primal_from_offsets,
                            "GDMLT: primal also from the neighbours' offset paths (G-PT's MIS "
                            "between pixels): true | false");
     render_cmd->add_option("--very-direct-samples", render.very_direct_samples,
                            "GDMLT: spp of the pass for emitters seen directly (64)");
-    render_cmd->add_option("--bootstrap-error", render.bootstrap_error,
-                           "GDMLT: grow the bootstrap until b's relative standard error is "
-                           "below this (0.01)");
+    render_cmd
+        ->add_option("--bootstrap-error", render.bootstrap_error,
+                     "GDMLT: grow the bootstrap until b's relative standard error is "
+                     "below this (0.01)")
+        ->check(finite_number());
 
     render_cmd->add_flag(
         "--features", render.features,
@@ -765,7 +778,8 @@ int main(int argc, char** argv) {
         ->add_option("--adap-sigma", render.adap_sigma,
                      "ADAP: bandwidths albedo,normal,depth,shape (0.1,0.2,0.05,0.5; 0 = off)")
         ->delimiter(',')
-        ->expected(4);
+        ->expected(4)
+        ->check(finite_number());
     render_cmd->add_flag("--adap-mutual", render.adap_mutual,
                          "ADAP: keep an edge only when both ends chose it (default: either)");
 

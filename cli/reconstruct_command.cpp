@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/validators.h"
 #include "core/image/gradient_buffers.h"
 #include "core/image/gradient_layers.h"
 #include "core/image/image_io.h"
@@ -151,22 +152,26 @@ void add_reconstruct_command(CLI::App& app, int& exit_code) {
         ->check(CLI::IsMember({"l1", "l2", "cv"}));
     cmd->add_option("--alpha", options->alpha,
                     "Screening weight of the primal (default: the render's, else 0.2)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(CLI::NonNegativeNumber)
+        ->check(finite_number());
     cmd->add_option("--coarse-radius", options->coarse_radius,
                     "Restore the primal's scales beyond this many pixels (default: the render's, "
                     "else 8; 0 = off)");
     cmd->add_option("--huber", options->huber,
                     "l1: Huber threshold in noise standard deviations where variance layers "
                     "exist (default: the render's, else 0 = pure L1)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(CLI::NonNegativeNumber)
+        ->check(finite_number());
     cmd->add_option("--iterations", options->iterations,
                     "l2: max CG iterations, l1: IRLS iterations, cv: iterations")
         ->check(CLI::PositiveNumber);
     cmd->add_option("--tolerance", options->tolerance, "CG relative residual (default 1e-3)")
-        ->check(CLI::PositiveNumber);
+        ->check(CLI::PositiveNumber)
+        ->check(finite_number());
     cmd->add_option("-t,--threads", options->threads, "Threads (default: all cores)")
         ->check(CLI::NonNegativeNumber);
-    cmd->add_option("--exposure", options->exposure, "PNG preview exposure in stops");
+    cmd->add_option("--exposure", options->exposure, "PNG preview exposure in stops")
+        ->check(finite_number());
     cmd->add_flag("-q,--quiet", options->quiet, "No summary line");
     cmd->callback([options, &exit_code] {
         try {

@@ -54,12 +54,15 @@ void validate_chain_settings(const MarkovChainSettings& s, const FileLoc& loc) {
         throw InputError(loc, "p_large must lie in [0, 1]");
     if (!(s.mutation.s1 > 0.0 && s.mutation.s1 < s.mutation.s2 && s.mutation.s2 < 1.0))
         throw InputError(loc, "mutation sizes must satisfy 0 < s1 < s2 < 1");
-    if (!(s.mutation.image_s2_pixels >= 0.0))
-        throw InputError(loc, "image_mutation_size must not be negative");
+    if (!(s.mutation.image_s2_pixels >= 0.0 && std::isfinite(s.mutation.image_s2_pixels)))
+        throw InputError(loc, "image_mutation_size must be finite and not negative");
     if (s.chains < 0) throw InputError(loc, "chains must not be negative");
     if (s.bootstrap_samples < 1) throw InputError(loc, "bootstrap_samples must be positive");
-    if (!(s.mutations_per_pixel > 0.0 && std::isfinite(s.mutations_per_pixel)))
-        throw InputError(loc, "mutations_per_pixel must be positive");
+    // The upper bound keeps mutations_per_pixel x pixels far inside 64 bits at any image
+    // size an int allows (1e30 used to overflow into a render that never ended); at a few
+    // million mutations per second, 1e9 per pixel is decades for a single pixel anyway.
+    if (!(s.mutations_per_pixel > 0.0 && s.mutations_per_pixel <= 1e9))
+        throw InputError(loc, "mutations_per_pixel must be positive and at most 1e9");
 }
 
 }  // namespace gdmlt::mlt

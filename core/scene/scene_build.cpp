@@ -13,6 +13,18 @@
 namespace gdmlt {
 namespace {
 
+/// Largest coordinate (and camera near_clip) a scene may have, 100x below the 1.8e18 beyond
+/// which Embree rejects a ray (its `ray.valid()` aborts the process): anything near that
+/// would overflow single precision in hit-point and offset arithmetic anyway.
+constexpr double kMaxWorldCoordinate = 1e16;
+
+/// Throws at `loc` unless every coordinate of `p` is finite and within kMaxWorldCoordinate.
+void check_world_point(const Vec3d& p, const FileLoc& loc, const std::string& what) {
+    if (!(p.array().abs() <= kMaxWorldCoordinate).all())
+        throw InputError(loc, what + " lies outside the traceable world (coordinates must be " +
+                                  "finite and within 1e16)");
+}
+
 std::string describe(const ObjectDesc& obj) {
     return "<" + obj.tag + " type=\"" + obj.type + "\">";
 }
@@ -451,6 +463,11 @@ struct Builder {
         const auto near_clip = static_cast<float>(props.get_float("near_clip", 0.01));
         props.ignore("far_clip");
         const Transform world_from_camera = props.get_transform("to_world");
+        check_world_point(world_from_camera.apply_point(Vec3d(Vec3d::Zero())),
+                          props.loc_of("to_world"), "the camera");
+        if (!(near_clip > 0.f && near_clip <= kMaxWorldCoordinate))
+            throw InputError(props.loc_of("near_clip"),
+                             "near_clip must be positive and finite (at most 1e16)");
         if (!(fov > 0.f && fov < 180.f))
             throw InputError(props.loc_of("fov"), "fov must be in (0, 180)");
         static const std::set<std::string> axes = {"x", "y", "diagonal", "smaller", "larger"};
@@ -759,8 +776,12 @@ struct Builder {
                     props.loc_of("to_world"),
                     "sphere to_world must be a similarity (uniform scale, rotation, translation)");
             Sphere s;
-            s.center = world_from_object.apply_point(center_object).cast<float>();
-            s.radius = static_cast<float>(radius_object * scale);
+            const Vec3d center = world_from_object.apply_point(center_object);
+            const double radius = radius_object * scale;
+            check_world_point(Vec3d(center.array().abs() + radius), props.loc_of("radius"),
+                              "the sphere");
+            s.center = center.cast<float>();
+            s.radius = static_cast<float>(radius);
             s.flip_normals = flip_normals;
             shape.emplace(s, bsdf, obj.id);
         } else {
@@ -797,6 +818,9 @@ struct Builder {
             }
             mesh.flip_normals = flip_normals;
             transform_mesh(mesh, world_from_object);
+            for (const Vec3f& position : mesh.positions)
+                check_world_point(position.cast<double>(), props.loc_of("to_world"),
+                                  "a vertex of " + describe(obj));
             counts["triangles"] += mesh.triangle_count();
             shape.emplace(std::move(mesh), bsdf, obj.id);
         }
@@ -836,6 +860,8 @@ struct Builder {
             PointEmitter p;
             const Transform to_world = props.get_transform("to_world");
             const Vec3d position = props.get_vec3("position", Vec3d::Zero());
+            check_world_point(to_world.apply_point(position), props.loc_of("position"),
+                              "the point light");
             p.position = to_world.apply_point(position).cast<float>();
             p.intensity = props.get_rgb("intensity", Rgb::Ones());
             emitters.emplace_back(p);
@@ -851,6 +877,8 @@ struct Builder {
             if (!(beam >= 0.f && beam <= cutoff))
                 throw InputError(props.loc_of("beam_width"),
                                  "beam_width must be in [0, cutoff_angle]");
+            check_world_point(to_world.apply_point(Vec3d(Vec3d::Zero())), props.loc_of("to_world"),
+                              "the spot light");
             const Vec3f position = to_world.apply_point(Vec3d(Vec3d::Zero())).cast<float>();
             emitters.emplace_back(make_spot(position, rotation,
                                             props.get_rgb("intensity", Rgb::Ones()), cutoff, beam));

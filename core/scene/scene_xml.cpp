@@ -249,14 +249,25 @@ bool is_transform_operation_tag(std::string_view tag) {
            tag == "lookat";
 }
 
-std::optional<std::string> read_text_file(const fs::path& path) {
+/// The file's contents, or nullopt and the reason in `why`. Regular files only: reading a FIFO
+/// blocks until a writer appears, and a device such as /dev/zero never ends.
+std::optional<std::string> read_text_file(const fs::path& path, std::string& why) {
     std::error_code error;
-    if (fs::is_directory(path, error)) return std::nullopt;
+    if (!fs::exists(path, error)) {
+        why = "no such file";
+        return std::nullopt;
+    }
+    if (!fs::is_regular_file(path, error)) {
+        why = "not a regular file";
+        return std::nullopt;
+    }
     std::ifstream stream(path, std::ios::binary);
-    if (!stream) return std::nullopt;
     std::ostringstream contents;
-    contents << stream.rdbuf();
-    if (stream.bad()) return std::nullopt;
+    if (stream) contents << stream.rdbuf();
+    if (!stream || stream.bad()) {
+        why = "cannot read it";
+        return std::nullopt;
+    }
     return std::move(contents).str();
 }
 
@@ -517,8 +528,11 @@ class SceneParser {
             for (const std::string& file : include_stack_) chain += file + " -> ";
             throw InputError(loc, "include cycle: " + chain + identity);
         }
-        std::optional<std::string> text = read_text_file(path);
-        if (!text) throw InputError(loc, "cannot open included file " + in_quotes(path.string()));
+        std::string why;
+        std::optional<std::string> text = read_text_file(path, why);
+        if (!text)
+            throw InputError(loc,
+                             "cannot open included file " + in_quotes(path.string()) + ": " + why);
 
         const SourceText source(path.string(), std::move(*text));
         const pugi::xml_document document = load_document(source);
@@ -696,8 +710,9 @@ class SceneParser {
 }  // namespace
 
 SceneDesc parse_scene_file(const std::string& path, const ParseOptions& options) {
-    std::optional<std::string> text = read_text_file(path);
-    if (!text) throw InputError(FileLoc{path, 0, 0}, "cannot open scene file");
+    std::string why;
+    std::optional<std::string> text = read_text_file(path, why);
+    if (!text) throw InputError(FileLoc{path, 0, 0}, "cannot open scene file: " + why);
     return SceneParser(options).parse(std::move(*text), path);
 }
 

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <cmath>
 #include <filesystem>
@@ -86,6 +87,27 @@ TEST_F(ImageIoTest, MissingFileIsAnInputErrorNamingTheFile) {
         EXPECT_NE(std::string(e.what()).find("does_not_exist.exr"), std::string::npos);
     }
     EXPECT_THROW(read_image(path), InputError);
+}
+
+TEST_F(ImageIoTest, AFifoOrADeviceIsAnInputErrorNotAHang) {
+    // A texture or an EXR to reconstruct named /dev/zero or a FIFO hung the reader.
+    fs::create_directories(dir_);
+    const fs::path fifo = dir_ / "texture.exr";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    for (const std::string& path : {fifo.string(), std::string("/dev/zero")}) {
+        for (const bool exr : {true, false}) {
+            try {
+                if (exr)
+                    read_exr(path);
+                else
+                    read_image(path);
+                FAIL() << path << " was read";
+            } catch (const InputError& e) {
+                EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos)
+                    << e.what();
+            }
+        }
+    }
 }
 
 TEST(Srgb, TransferFunctionsAreInversesOfEachOther) {

@@ -123,6 +123,35 @@ TEST(SceneBuild, IntegersBeyond32BitsAreErrorsNotTruncations) {
               "");
 }
 
+TEST(SceneBuild, GeometryAndCamerasBeyondTheTraceableWorldAreErrorsNotAborts) {
+    // Each of these was accepted and then aborted every integrator inside Embree (a ray origin
+    // beyond 1.8e18 fails its ray.valid() check) or traced infinities.
+    const std::string camera = R"(<sensor type="perspective">)";
+    for (
+        const std::string& bad : {
+            camera + R"(<float name="near_clip" value="inf"/></sensor>)" + kLight,
+            camera + R"(<float name="near_clip" value="1e20"/></sensor>)" + kLight,
+            camera + R"(<float name="near_clip" value="0"/></sensor>)" + kLight,
+            camera + R"(<transform name="to_world"><translate x="1e38"/></transform></sensor>)" +
+                kLight,
+            std::string(R"(<shape type="sphere"><float name="radius" value="inf"/></shape>)"),
+            std::string(R"(<shape type="sphere"><float name="radius" value="1e30"/></shape>)"),
+            std::string(
+                R"(<shape type="rectangle"><transform name="to_world"><scale value="-1e308"/></transform></shape>)"),
+            std::string(
+                R"(<emitter type="point"><point name="position" x="0" y="1e30" z="0"/></emitter>)"),
+        }) {
+        const std::string message = build_error("\n" + bad);
+        EXPECT_NE(message.find("test.xml:3"), std::string::npos) << bad << ": " << message;
+    }
+    // Large but traceable scenes still build.
+    EXPECT_EQ(
+        build_error(camera + R"(<transform name="to_world"><translate x="1e6"/></transform>)" +
+                    R"(<float name="near_clip" value="1e3"/></sensor>)" +
+                    R"(<shape type="sphere"><float name="radius" value="1e9"/></shape>)"),
+        "");
+}
+
 TEST(SceneBuild, RectangleFacesAlongItsTransformedNormal) {
     // Mitsuba's rectangle spans [-1,1]^2 at z = 0 facing +z; rotating by -90 degrees about x
     // turns it into a floor at y = -1 facing +y.

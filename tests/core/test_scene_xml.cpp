@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -399,6 +400,33 @@ TEST(SceneXml, MissingIncludeIsAnErrorAtTheInclude) {
 
 TEST(SceneXml, MissingSceneFileIsAnInputError) {
     EXPECT_THROW(parse_scene_file("/nonexistent/gdmlt/scene.xml"), InputError);
+}
+
+TEST(SceneXml, AFifoOrADeviceIsAnInputErrorNotAHang) {
+    // Reading a FIFO blocks until a writer opens it, and /dev/zero never ends: before the
+    // check, both hung the loader (a scene file, or an include).
+    TempDir dir;
+    const fs::path fifo = dir.path() / "scene.xml";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    try {
+        parse_scene_file(fifo.string());
+        FAIL() << "a FIFO was read as a scene";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+    }
+    for (const std::string& included : {fifo.string(), std::string("/dev/zero")}) {
+        const fs::path main =
+            dir.write("main.xml", "<scene version=\"3.0.0\">\n  <include filename=\"" + included +
+                                      "\"/>\n</scene>");
+        try {
+            parse_scene_file(main.string());
+            FAIL() << included << " was included";
+        } catch (const InputError& e) {
+            const std::string message = e.what();
+            EXPECT_NE(message.find("not a regular file"), std::string::npos) << message;
+            EXPECT_NE(message.find("main.xml:2"), std::string::npos) << message;
+        }
+    }
 }
 
 // --- Malformed input: file and line in every message --------------------------------------
