@@ -415,7 +415,8 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     const std::string shift = options.shift.empty() ? "auto" : options.shift;
     settings.shift = parse_shift(shift);
     mlt::validate_gdmlt_settings(settings, FileLoc{"command line", 0, 0});
-    const reconstruct::ReconstructConfig rc = reconstruct_config(options);
+    reconstruct::ReconstructConfig rc = reconstruct_config(options);
+    if (!options.alpha) rc.alpha = mlt::kGdmltReconstructAlpha;
 
     IntegratorResult r;
     r.seed = settings.seed;
@@ -432,7 +433,6 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
                 {"reconstruct", reconstruct::to_string(rc.method)},
                 {"alpha", rc.alpha},
                 {"coarse_radius", rc.coarse_radius},
-                {"huber", rc.huber_k},
                 {"huber", rc.huber_k},
                 {"p_large", settings.mutation.p_large},
                 {"mutation_size", {settings.mutation.s1, settings.mutation.s2}},
@@ -706,7 +706,9 @@ int main(int argc, char** argv) {
     render_cmd->add_flag("--lenient", render.lenient,
                          "Unknown plugins/properties are warnings, not errors");
     render_cmd->add_flag("-q,--quiet", render.quiet, "No progress output");
-    render_cmd->add_option("--p-large", render.p_large, "PSSMLT: large-step probability (0.3)")
+    render_cmd
+        ->add_option("--p-large", render.p_large,
+                     "PSSMLT/GDMLT: large-step probability (0.3 / 0.7)")
         ->check(CLI::Range(0.0, 1.0))
         ->check(finite_number());
     render_cmd
@@ -730,7 +732,9 @@ int main(int argc, char** argv) {
                            "PSSMLT: render direct illumination separately with N path-traced spp");
     render_cmd->add_option("--reconstruct", render.reconstruct_method,
                            "Gradient domain: l1 | l2 | cv (l1)");
-    render_cmd->add_option("--alpha", render.alpha, "Gradient domain: weight of the primal (0.2)")
+    render_cmd
+        ->add_option("--alpha", render.alpha,
+                     "Gradient domain: weight of the primal (gdpt 0.2, gdmlt 0.05)")
         ->check(finite_number());
     render_cmd
         ->add_option("--coarse-radius", render.coarse_radius,
