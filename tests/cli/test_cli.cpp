@@ -7,11 +7,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/image/image_io.h"
@@ -27,10 +29,10 @@ struct Outcome {
     std::string output;  // stdout and stderr
 };
 
-/// Runs `gdmlt ARGS` in `dir` and collects its exit code and output.
-Outcome run_gdmlt(const fs::path& dir, const std::string& args) {
-    const std::string command =
-        "cd '" + dir.string() + "' && '" + std::string(GDMLT_BINARY) + "' " + args + " 2>&1";
+/// Runs `PREFIX gdmlt ARGS` in `dir` and collects its exit code and output.
+Outcome run_gdmlt(const fs::path& dir, const std::string& args, const std::string& prefix = "") {
+    const std::string command = "cd '" + dir.string() + "' && " + prefix + "'" +
+                                std::string(GDMLT_BINARY) + "' " + args + " 2>&1";
     Outcome run;
     FILE* pipe = ::popen(command.c_str(), "r");
     if (!pipe) return run;
@@ -107,6 +109,17 @@ TEST_F(Cli, NonFiniteOrRunawayNumbersAreRefusedBeforeAnythingIsWritten) {
     EXPECT_NE(reconstruct.exit_code, 0);
 }
 
+TEST_F(Cli, ARenderThatCannotFitIntoMemoryIsRefusedBeforeItStarts) {
+    // 60000^2 pixels: even the path tracer's buffers (~45 bytes per pixel) need ~150 GiB. It
+    // used to allocate until std::bad_alloc and report an "internal error".
+    write("huge.xml",
+          "<scene version=\"3.0.0\">\n" + test::cornell_box_xml(60000) + "\n</scene>\n");
+    const Outcome run = run_gdmlt(dir_, "render huge.xml -q -o out.exr");
+    EXPECT_EQ(run.exit_code, 2) << run.output;
+    EXPECT_NE(run.output.find("GiB of memory"), std::string::npos) << run.output;
+    EXPECT_TRUE(outputs().empty());
+}
+
 TEST_F(Cli, ABadSceneNamesFileAndLineAndWritesNothing) {
     write("bad.xml",
           "<scene version=\"3.0.0\">\n  <shape type=\"sphere\">\n    <float "
@@ -120,6 +133,43 @@ TEST_F(Cli, ABadSceneNamesFileAndLineAndWritesNothing) {
     EXPECT_NE(device.exit_code, 0);
     EXPECT_NE(device.output.find("not a regular file"), std::string::npos) << device.output;
     EXPECT_TRUE(outputs().empty());
+}
+
+TEST_F(Cli, SigtermSighupAndSigintStopARenderWithinSecondsAndItWritesAWholePartialImage) {
+    // A budget of 1e8 spp would take hours. `timeout` sends the signal after 1.5 s (and kills
+    // after 30 s, so a render that ignores it fails instead of hanging the suite). Before,
+    // SIGTERM and SIGHUP killed the render without a file, and with --spp each pixel took all
+    // its samples at once, so Ctrl-C left an image with almost every pixel black.
+    for (const std::string integrator : {"path", "gdpt"}) {
+        for (const auto& [signal, code] :
+             std::vector<std::pair<std::string, int>>{{"TERM", 143}, {"HUP", 129}, {"INT", 130}}) {
+            fs::remove(dir_ / "out.exr");
+            const auto start = std::chrono::steady_clock::now();
+            const Outcome run = run_gdmlt(dir_,
+                                          "render box.xml --integrator " + integrator +
+                                              " --spp 100000000 -t 2 -q -o out.exr --stats s.json",
+                                          "timeout --preserve-status -k 30 -s " + signal + " 1.5 ");
+            const double seconds =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            EXPECT_EQ(run.exit_code, code) << integrator << " SIG" << signal << ": " << run.output;
+            // 1.5 s to the signal, up to ~1 s to finish the pass, the write: 10 s is generous
+            // for a loaded machine and far below the 30 s kill.
+            EXPECT_LT(seconds, 10.0) << integrator << " SIG" << signal;
+            ASSERT_TRUE(fs::is_regular_file(dir_ / "out.exr")) << integrator << " SIG" << signal;
+            ExrAttributes attributes;
+            const Image image = read_exr((dir_ / "out.exr").string(), &attributes).front().image;
+            EXPECT_EQ(attributes["gdmlt/partial"], "true");
+            std::ifstream stats(dir_ / "s.json");
+            std::stringstream text;
+            text << stats.rdbuf();
+            // Every pixel had at least its first whole pass.
+            EXPECT_EQ(text.str().find("\"spp_completed\": 0"), std::string::npos) << text.str();
+            EXPECT_NE(text.str().find("\"spp_completed\""), std::string::npos);
+            double sum = 0.0;
+            for (float v : image.pixels) sum += v;
+            EXPECT_GT(sum, 0.0);
+        }
+    }
 }
 
 TEST_F(Cli, ReconstructWithoutFlagsReproducesTheRendersFinalImage) {
