@@ -155,16 +155,44 @@ json features_json(const SceneFeatures& f) {
                 {"shape_kinds", f.shape_kinds}};
 }
 
-void write_text_atomically(const std::string& path, const std::string& text) {
-    const std::filesystem::path target(path);
-    if (target.has_parent_path()) std::filesystem::create_directories(target.parent_path());
-    const std::string temp = path + ".tmp";
-    {
-        std::ofstream out(temp);
-        out << text;
-        if (!out) throw std::runtime_error("cannot write " + temp);
+/// The files a render writes: the EXR, its PNG preview, and the statistics if asked for.
+struct OutputPaths {
+    std::string exr, png, stats;
+};
+
+/// Where the render's files go, checked before it starts (a long render must not end in an
+/// output it cannot or must not write). -o must name an .exr (its PNG goes beside it: "-o
+/// x.png" used to write an EXR there and then the PNG over it, and "-o scene.xml" replaced the
+/// scene); no two outputs and no output and the scene may be the same file.
+OutputPaths output_paths(const RenderOptions& options) {
+    namespace fs = std::filesystem;
+    OutputPaths paths;
+    paths.exr = options.output.empty() ? fs::path(options.scene_path).stem().string() + ".exr"
+                                       : options.output;
+    std::string extension = fs::path(paths.exr).extension().string();
+    for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (extension != ".exr")
+        throw InputError("-o must name an .exr file (the PNG preview is written beside it): '" +
+                         paths.exr + "'");
+    paths.png = fs::path(paths.exr).replace_extension(".png").string();
+    paths.stats = options.stats_path;
+    const auto same = [](const std::string& a, const std::string& b) {
+        std::error_code ec;
+        return fs::weakly_canonical(a, ec) == fs::weakly_canonical(b, ec);
+    };
+    const std::vector<std::pair<std::string, std::string>> outputs = {
+        {"-o", paths.exr}, {"the PNG preview", paths.png}, {"--stats", paths.stats}};
+    for (std::size_t i = 0; i < outputs.size(); ++i) {
+        if (outputs[i].second.empty()) continue;
+        check_output_path(outputs[i].second, outputs[i].first);
+        if (same(outputs[i].second, options.scene_path))
+            throw InputError(outputs[i].first + " '" + outputs[i].second + "' is the scene file");
+        for (std::size_t j = 0; j < i; ++j)
+            if (same(outputs[i].second, outputs[j].second))
+                throw InputError(outputs[i].first + " and " + outputs[j].first +
+                                 " name the same file '" + outputs[i].second + "'");
     }
-    std::filesystem::rename(temp, target);
+    return paths;
 }
 
 /// The settings every per-pixel sampler shares (path tracer, GDPT): spp or time budget, seed,
@@ -553,6 +581,7 @@ int run_render(const RenderOptions& options) {
 
     const Film& film = scene.camera().film();
     check_memory(film, integrator, options.features || adap, adap);
+    const OutputPaths paths = output_paths(options);
     if (!options.quiet)
         std::cerr << "gdmlt: rendering " << options.scene_path << " (" << film.crop_width << "x"
                   << film.crop_height << ", " << integrator << ", " << threads << " threads)\n";
@@ -668,15 +697,13 @@ int run_render(const RenderOptions& options) {
     attributes["gdmlt/version"] = kVersion;
     attributes["gdmlt/partial"] = result.partial ? "true" : "false";
 
-    std::string output = options.output;
-    if (output.empty()) output = std::filesystem::path(options.scene_path).stem().string() + ".exr";
+    const std::string& output = paths.exr;
     std::vector<ExrLayer> layers = {ExrLayer{"", {"R", "G", "B"}, result.image}};
     layers.insert(layers.end(), result.extra_layers.begin(), result.extra_layers.end());
     write_exr(output, layers, attributes);
-    const std::string png = std::filesystem::path(output).replace_extension(".png").string();
+    const std::string& png = paths.png;
     write_png_srgb(png, result.image);
-    if (!options.stats_path.empty())
-        write_text_atomically(options.stats_path, stats.dump(2) + "\n");
+    if (!options.stats_path.empty()) write_text_file(options.stats_path, stats.dump(2) + "\n");
 
     for (const int signal : kStopSignals) std::signal(signal, SIG_DFL);
 
@@ -856,6 +883,9 @@ int main(int argc, char** argv) {
     } catch (const InputError& e) {
         std::cerr << e.what() << "\n";
         return 2;
+    } catch (const OutputError& e) {
+        std::cerr << "gdmlt: " << e.what() << "\n";
+        return 1;
     } catch (const std::bad_alloc&) {
         std::cerr
             << "gdmlt: out of memory (a smaller film, crop window or fewer threads may fit)\n";

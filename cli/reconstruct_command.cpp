@@ -70,6 +70,16 @@ int run_reconstruct(ReconstructOptions o) {
         limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                       static_cast<std::size_t>(o.threads));
 
+    // The outputs are checked before the solve; overwriting the input would lose the raw layers.
+    const std::string output = o.output.empty() ? default_output(o.input) : o.output;
+    const std::string png = std::filesystem::path(output).replace_extension(".png").string();
+    for (const std::string& path : {output, png}) {
+        check_output_path(path, "-o");
+        std::error_code ec;
+        if (std::filesystem::weakly_canonical(path, ec) ==
+            std::filesystem::weakly_canonical(o.input, ec))
+            throw InputError("-o '" + path + "' is the input file");
+    }
     ExrAttributes attributes;
     const GradientBuffers buffers = read_buffers(o.input, attributes);
     defaults_from_header(attributes, o);
@@ -109,7 +119,6 @@ int run_reconstruct(ReconstructOptions o) {
     }
     const reconstruct::ReconstructStats& s = result.stats;
 
-    const std::string output = o.output.empty() ? default_output(o.input) : o.output;
     attributes["gdmlt.reconstruct.method"] = o.method;
     attributes["gdmlt.reconstruct.alpha"] = std::to_string(*o.alpha);
     attributes["gdmlt.reconstruct.coarse_radius"] = std::to_string(config.coarse_radius);
@@ -120,9 +129,7 @@ int run_reconstruct(ReconstructOptions o) {
     attributes["gdmlt.reconstruct.dropped_edges"] =
         std::to_string(s.dropped_nonfinite_edges + s.dropped_negative_weight_edges);
     write_exr(output, {{"", {"R", "G", "B"}, result.image}}, attributes);
-    std::filesystem::path png(output);
-    png.replace_extension(".png");
-    write_png_srgb(png.string(), result.image, o.exposure);
+    write_png_srgb(png, result.image, o.exposure);
 
     if (!o.quiet) {
         std::fprintf(
@@ -179,6 +186,9 @@ void add_reconstruct_command(CLI::App& app, int& exit_code) {
         } catch (const InputError& e) {
             std::cerr << "gdmlt: error: " << e.what() << "\n";
             exit_code = 2;
+        } catch (const OutputError& e) {
+            std::cerr << "gdmlt: " << e.what() << "\n";
+            exit_code = 1;
         } catch (const std::exception& e) {
             std::cerr << "gdmlt: internal error: " << e.what() << "\n";
             exit_code = 1;

@@ -20,9 +20,12 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <stdexcept>
 #include <system_error>
 
@@ -43,8 +46,7 @@ fs::path temp_path_beside(const std::string& path) {
         std::error_code ec;
         fs::create_directories(parent, ec);
         if (ec)
-            throw std::runtime_error("cannot create directory '" + parent.string() +
-                                     "': " + ec.message());
+            throw OutputError("cannot create directory '" + parent.string() + "': " + ec.message());
     }
     // Keep the extension last: OpenImageIO picks the format from it.
     // Built with appends: GCC 12 gives a false -Wrestrict on `"." + std::string` at -O2.
@@ -64,8 +66,9 @@ void rename_over(const fs::path& tmp, const std::string& path) {
     std::error_code ec;
     fs::rename(tmp, path, ec);
     if (ec) {
+        const std::string reason = ec.message();
         fs::remove(tmp, ec);
-        throw std::runtime_error("cannot rename temporary file over '" + path + "'");
+        throw OutputError("cannot write '" + path + "': " + reason);
     }
 }
 
@@ -83,6 +86,41 @@ int channel_rank(const std::string& c) {
 }
 
 }  // namespace
+
+void check_output_path(const std::string& path, const std::string& what) {
+    std::error_code ec;
+    const fs::path target(path);
+    const fs::file_status status = fs::symlink_status(target, ec);
+    if (fs::exists(status) && !fs::is_regular_file(fs::status(target, ec)))
+        throw OutputError(what + " '" + path +
+                          "' exists and is not a regular file: it is never replaced");
+    // The directory that will hold it, or its nearest existing ancestor (created on write).
+    fs::path directory = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+    while (!fs::exists(directory, ec) && directory.has_parent_path() &&
+           directory.parent_path() != directory)
+        directory = directory.parent_path();
+    if (!fs::is_directory(directory, ec))
+        throw OutputError(what + " '" + path + "': '" + directory.string() +
+                          "' is not a directory");
+    if (::access(directory.c_str(), W_OK | X_OK) != 0)
+        throw OutputError(what + " '" + path + "': directory '" + directory.string() +
+                          "' is not writable");
+}
+
+void write_text_file(const std::string& path, const std::string& text) {
+    const fs::path tmp = temp_path_beside(path);
+    {
+        std::ofstream out(tmp, std::ios::binary);
+        out << text;
+        out.flush();
+        if (!out) {
+            std::error_code ec;
+            fs::remove(tmp, ec);
+            throw OutputError("cannot write '" + path + "': " + std::strerror(errno));
+        }
+    }
+    rename_over(tmp, path);
+}
 
 void write_exr(const std::string& path, const std::vector<ExrLayer>& layers,
                const ExrAttributes& attributes) {
@@ -125,7 +163,7 @@ void write_exr(const std::string& path, const std::vector<ExrLayer>& layers,
     } catch (const std::exception& e) {
         std::error_code ec;
         fs::remove(tmp, ec);
-        throw std::runtime_error("cannot write EXR '" + path + "': " + e.what());
+        throw OutputError("cannot write EXR '" + path + "': " + e.what());
     }
     rename_over(tmp, path);
 }
@@ -231,18 +269,28 @@ void write_png_srgb(const std::string& path, const Image& rgb, float exposure_st
 
     const fs::path tmp = temp_path_beside(path);
     auto out = OIIO::ImageOutput::create(tmp.string());
-    if (!out) throw std::runtime_error("cannot create PNG writer for '" + path + "'");
+    if (!out) throw OutputError("cannot create PNG writer for '" + path + "'");
     OIIO::ImageSpec spec(rgb.width, rgb.height, out_channels, OIIO::TypeDesc::UINT8);
     bool ok =
         out->open(tmp.string(), spec) && out->write_image(OIIO::TypeDesc::UINT8, bytes.data());
     ok = out->close() && ok;
+    std::string err = ok ? "" : out->geterror();
+    out.reset();
+    // libpng does not report every failed write (a full disk left a truncated PNG and exit
+    // code 0): read the file back before it replaces anything.
+    if (ok) {
+        auto check = OIIO::ImageInput::open(tmp.string());
+        std::vector<std::uint8_t> back(bytes.size());
+        ok = check && check->spec().width == rgb.width && check->spec().height == rgb.height &&
+             check->read_image(0, 0, 0, out_channels, OIIO::TypeDesc::UINT8, back.data()) &&
+             back == bytes;
+        if (!ok) err = "the file did not read back (disk full?)";
+    }
     if (!ok) {
-        const std::string err = out->geterror();
         std::error_code ec;
         fs::remove(tmp, ec);
-        throw std::runtime_error("cannot write PNG '" + path + "': " + err);
+        throw OutputError("cannot write PNG '" + path + "': " + err);
     }
-    out.reset();
     rename_over(tmp, path);
 }
 

@@ -2,12 +2,30 @@
 #pragma once
 // Image files. OpenEXR / OpenImageIO appear only in image_io.cpp.
 #include <map>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "core/image/image.h"
 
 namespace gdmlt {
+
+/// An output file could not be written (full disk, no permission, not a regular file...); the
+/// message names the file and the reason. Distinct from programming errors, which the CLI
+/// reports as internal.
+struct OutputError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+/// Throws OutputError unless `path` can become an output file: it must not exist as anything
+/// but a regular file (a device, FIFO or directory is never replaced: as root, -o /dev/null
+/// once replaced the device node), and its directory, or the nearest existing ancestor that
+/// would hold it, must be writable. `what` names the option in the message.
+void check_output_path(const std::string& path, const std::string& what);
+
+/// Writes `text` to `path` through a temporary file renamed over it; the temporary is removed
+/// on failure. Throws OutputError.
+void write_text_file(const std::string& path, const std::string& text);
 
 /// One layer of a multi-layer EXR. The main image has an empty name and channels "R","G","B";
 /// a named layer "primal" with channels {"R","G","B"} is stored as "primal.R", "primal.G", ...
@@ -22,7 +40,7 @@ using ExrAttributes = std::map<std::string, std::string>;
 
 /// Writes a multi-layer float32 EXR. All layers must have the same size. Writes to a temporary
 /// file in the same directory and renames it over `path`, so a crash never leaves half a file.
-/// Throws std::runtime_error on I/O failure.
+/// Throws OutputError on I/O failure.
 void write_exr(const std::string& path, const std::vector<ExrLayer>& layers,
                const ExrAttributes& attributes = {});
 

@@ -4,6 +4,7 @@
 // raw layers to the render's own final image. Each test runs the real binary (GDMLT_BINARY)
 // on a 16x16 Cornell box written to a fresh directory.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -118,6 +119,41 @@ TEST_F(Cli, ARenderThatCannotFitIntoMemoryIsRefusedBeforeItStarts) {
     EXPECT_EQ(run.exit_code, 2) << run.output;
     EXPECT_NE(run.output.find("GiB of memory"), std::string::npos) << run.output;
     EXPECT_TRUE(outputs().empty());
+}
+
+TEST_F(Cli, OutputsThatMustNotBeWrittenAreRefusedBeforeRendering) {
+    // As root, "-o /dev/null" replaced the device node with an EXR; "-o x.png" wrote an EXR
+    // there and the PNG over it; --stats could overwrite the EXR or the scene. Each is now an
+    // error before the render starts, and the files stay as they were.
+    // The device is reached through symbolic links: should the check ever regress, the link is
+    // replaced, never /dev/null itself (a regressed run of this test as root once did that).
+    fs::create_directories(dir_ / "folder.exr");
+    ASSERT_EQ(::mkfifo((dir_ / "fifo.exr").c_str(), 0600), 0);
+    fs::create_symlink("/dev/null", dir_ / "null.exr");
+    fs::create_symlink("/dev/null", dir_ / "null.json");
+    for (const std::string bad :
+         {"-o null.exr", "-o x.png", "-o box.xml", "-o folder.exr", "-o fifo.exr",
+          "-o out.exr --stats out.exr", "-o out.exr --stats out.png", "-o out.exr --stats box.xml",
+          "-o out.exr --stats null.json"}) {
+        const Outcome run = run_gdmlt(dir_, "render box.xml --spp 1 -q " + bad);
+        EXPECT_NE(run.exit_code, 0) << bad << ": " << run.output;
+        EXPECT_FALSE(fs::exists(dir_ / "out.exr")) << bad;
+        EXPECT_FALSE(fs::exists(dir_ / "x.png")) << bad;
+    }
+    EXPECT_TRUE(fs::is_character_file(dir_ / "null.exr"));
+    EXPECT_TRUE(fs::is_character_file(dir_ / "null.json"));
+    EXPECT_TRUE(fs::is_directory(dir_ / "folder.exr"));
+    EXPECT_TRUE(fs::is_fifo(dir_ / "fifo.exr"));
+    std::ifstream scene(dir_ / "box.xml");
+    std::string first_line;
+    std::getline(scene, first_line);
+    EXPECT_EQ(first_line, "<scene version=\"3.0.0\">");
+    // Reconstructing over its own input would lose the raw layers.
+    ASSERT_EQ(run_gdmlt(dir_, "render box.xml --integrator gdpt --spp 2 -q -o raw.exr").exit_code,
+              0);
+    const auto raw_size = fs::file_size(dir_ / "raw.exr");
+    EXPECT_NE(run_gdmlt(dir_, "reconstruct raw.exr -q -o raw.exr").exit_code, 0);
+    EXPECT_EQ(fs::file_size(dir_ / "raw.exr"), raw_size);
 }
 
 TEST_F(Cli, ABadSceneNamesFileAndLineAndWritesNothing) {
