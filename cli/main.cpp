@@ -533,6 +533,12 @@ void check_memory(const Film& film, const std::string& integrator, bool features
 }
 
 int run_render(const RenderOptions& options) {
+    // The stop signals are caught from before the scene loads until the outputs are written: a
+    // render stops within about a second and writes what it has, and a second Ctrl-C while
+    // writing is ignored instead of killing the process half-way through a file.
+    g_interrupted.store(false);
+    g_stop_signal.store(0);
+    for (const int signal : kStopSignals) std::signal(signal, on_stop_signal);
     const Scene scene = load_scene(options.scene_path, options.defines, options.lenient);
 
     // Effective configuration: defaults < scene file < command line.
@@ -586,11 +592,11 @@ int run_render(const RenderOptions& options) {
         std::cerr << "gdmlt: rendering " << options.scene_path << " (" << film.crop_width << "x"
                   << film.crop_height << ", " << integrator << ", " << threads << " threads)\n";
 
-    g_interrupted.store(false);
-    g_stop_signal.store(0);
-    // Installed until the outputs are written: a second Ctrl-C while writing is ignored
-    // instead of killing the process half-way through a file.
-    for (const int signal : kStopSignals) std::signal(signal, on_stop_signal);
+    if (g_interrupted.load()) {
+        // Stopped while the scene loaded: there is nothing to write yet.
+        std::cerr << "gdmlt: interrupted before rendering; nothing written\n";
+        return 128 + g_stop_signal.load();
+    }
     // The feature pass runs first, so that ADAP can choose neighbours from its images; it
     // derives its own streams from the render's seed (feature_pass.h).
     std::optional<FeatureImages> features;
