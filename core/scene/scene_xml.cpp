@@ -528,6 +528,12 @@ class SceneParser {
             for (const std::string& file : include_stack_) chain += file + " -> ";
             throw InputError(loc, "include cycle: " + chain + identity);
         }
+        // Without cycles, a file may still include another many times, and that one the next:
+        // k levels of n includes expand into n^k parses (an "include bomb"). Real scenes
+        // include a few dozen files.
+        if (++includes_ > kMaxIncludes)
+            throw InputError(loc, "more than " + std::to_string(kMaxIncludes) +
+                                      " includes (each counted every time it is included)");
         std::string why;
         std::optional<std::string> text = read_text_file(path, why);
         if (!text)
@@ -704,6 +710,8 @@ class SceneParser {
     std::map<std::string, int> ids_;                 // id or alias -> object index
     std::vector<std::string> include_stack_;         // files being parsed, outermost first
     static constexpr int kMaxObjectNesting = 256;
+    static constexpr int kMaxIncludes = 10000;
+    int includes_ = 0;      // <include> elements processed so far, repeats counted
     int object_depth_ = 0;  // objects being parsed, includes counted through
 };
 

@@ -391,6 +391,28 @@ TEST(SceneXml, IncludeCycleIsAnErrorAtTheInclude) {
     }
 }
 
+TEST(SceneXml, AnIncludeBombIsAnInputErrorNotAnHourOfParsing) {
+    // No cycle, but four levels of 20 includes each expand into 160000 parses.
+    TempDir dir;
+    const std::string files = "abcde";
+    for (std::size_t level = 0; level + 1 < files.size(); ++level) {
+        std::string text = "<scene version=\"3.0.0\">\n";
+        for (int i = 0; i < 20; ++i)
+            text += "<include filename=\"" + std::string(1, files[level + 1]) + ".xml\"/>\n";
+        dir.write(std::string(1, files[level]) + ".xml", text + "</scene>");
+    }
+    dir.write("e.xml", "<scene version=\"3.0.0\"><default name=\"x\" value=\"1\"/></scene>");
+    try {
+        parse_scene_file((dir.path() / "a.xml").string());
+        FAIL() << "160000 includes were parsed";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("includes"), std::string::npos) << e.what();
+    }
+    // Twenty includes of twenty (400) are fine.
+    dir.write("c.xml", "<scene version=\"3.0.0\"><default name=\"x\" value=\"1\"/></scene>");
+    EXPECT_NO_THROW(parse_scene_file((dir.path() / "a.xml").string()));
+}
+
 TEST(SceneXml, MissingIncludeIsAnErrorAtTheInclude) {
     const std::string message = input_error_message(
         "<scene version=\"3.0.0\">\n\n  <include filename=\"nowhere/missing.xml\"/>\n</scene>",
