@@ -273,6 +273,30 @@ TEST_F(Cli, SigtermSighupAndSigintStopARenderWithinSecondsAndItWritesAWholeParti
     }
 }
 
+TEST_F(Cli, AHugeBootstrapStopsAtTheSignalAndAtTheTimeBudget) {
+    // 1e8 bootstrap samples take minutes; the bootstrap was one uninterruptible batch, so
+    // neither Ctrl-C nor --time stopped it. Now it stops between batches of ~0.1 s.
+    for (const std::string integrator : {"pssmlt", "gdmlt"}) {
+        const std::string render = "render box.xml --integrator " + integrator +
+                                   " --bootstrap 100000000 --spp 4 -t 2 -q -o out.exr";
+        auto start = std::chrono::steady_clock::now();
+        const Outcome signalled =
+            run_gdmlt(dir_, render, "timeout --preserve-status -k 30 -s TERM 1.5 ");
+        double seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        EXPECT_EQ(signalled.exit_code, 143) << integrator << ": " << signalled.output;
+        EXPECT_LT(seconds, 10.0) << integrator;
+        EXPECT_TRUE(fs::is_regular_file(dir_ / "out.exr")) << integrator;
+        fs::remove(dir_ / "out.exr");
+        start = std::chrono::steady_clock::now();
+        const Outcome timed = run_gdmlt(dir_, render + " --time 1.5", "timeout -s KILL 30 ");
+        seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        EXPECT_EQ(timed.exit_code, 0) << integrator << ": " << timed.output;
+        EXPECT_LT(seconds, 10.0) << integrator;
+        EXPECT_TRUE(fs::is_regular_file(dir_ / "out.exr")) << integrator;
+    }
+}
+
 TEST_F(Cli, ReconstructWithoutFlagsReproducesTheRendersFinalImage) {
     // The header records the render's reconstruction settings and the EXR every layer the
     // solve reads, so `gdmlt reconstruct raw.exr` needs no flags to give the same pixels.
