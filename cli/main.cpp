@@ -23,6 +23,7 @@
 #include "core/render/adap_selection.h"
 #include "core/render/feature_pass.h"
 #include "core/render/render_path.h"
+#include "core/render/render_ptracer.h"
 #include "core/scene/scene.h"
 #include "core/scene/scene_desc.h"
 #include "mlt/gdmlt.h"
@@ -307,23 +308,29 @@ void apply_mutation_options(const RenderOptions& options, mlt::MutationSettings&
     if (options.bootstrap) bootstrap = *options.bootstrap;
 }
 
-IntegratorResult run_path(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
+/// The path tracer, or with `light_tracing` the light tracer (ptracer): the same settings and
+/// stats (light paths per pixel as spp).
+IntegratorResult run_path(const Scene& scene, const RenderOptions& options, ProgressBar& bar,
+                          bool light_tracing) {
     RenderSettings settings;
     apply_sample_budget(scene, options, settings);
 
     IntegratorResult r;
     r.seed = settings.seed;
     r.config = {
-        {"integrator", "path"},
+        {"integrator", light_tracing ? "ptracer" : "path"},
         {"spp", options.time_s > 0.0 && options.spp == 0 ? json(nullptr) : json(settings.spp)},
         {"time_budget_s", settings.time_budget_s},
         {"seed", settings.seed},
         {"max_depth", settings.path.max_depth},
         {"rr_depth", settings.path.rr_depth},
         {"hide_emitters", settings.path.hide_emitters}};
-    const RenderOutput out = render_path(
-        scene, settings, &g_interrupted,
-        [&](const RenderProgress& p) { bar.update(p.fraction, p.samples, p.elapsed_s); });
+    const auto on_progress = [&](const RenderProgress& p) {
+        bar.update(p.fraction, p.samples, p.elapsed_s);
+    };
+    const RenderOutput out = light_tracing
+                                 ? render_ptracer(scene, settings, &g_interrupted, on_progress)
+                                 : render_path(scene, settings, &g_interrupted, on_progress);
     const RenderStats& s = out.stats;
     r.image = out.image;
     r.partial = s.interrupted;
@@ -507,7 +514,10 @@ double peak_bytes_per_pixel(const std::string& integrator, bool features, bool a
     double bytes = integrator == "gdpt"     ? 493.0
                    : integrator == "gdmlt"  ? 395.0
                    : integrator == "pssmlt" ? 53.0
-                                            : 45.0;
+                   // The light tracer: the path tracer's image plus two double RGB sums,
+                   // counted from its buffers (its splat batches are bounded, ~50 MB).
+                   : integrator == "ptracer" ? 93.0
+                                             : 45.0;
     if (features) bytes += 63.0;
     if (adap) bytes += 353.0;
     return bytes;
@@ -544,10 +554,10 @@ int run_render(const RenderOptions& options) {
     // Effective configuration: defaults < scene file < command line.
     const std::string integrator =
         options.integrator.empty() ? scene.integrator().type : options.integrator;
-    if (integrator != "path" && integrator != "pssmlt" && integrator != "gdpt" &&
-        integrator != "gdmlt")
+    if (integrator != "path" && integrator != "ptracer" && integrator != "pssmlt" &&
+        integrator != "gdpt" && integrator != "gdmlt")
         throw InputError("integrator '" + integrator +
-                         "' is not available (available: path, pssmlt, gdpt, gdmlt)");
+                         "' is not available (available: path, ptracer, pssmlt, gdpt, gdmlt)");
     if (options.max_depth && (*options.max_depth == 0 || *options.max_depth < -1))
         throw InputError("--max-depth must be -1 or at least 1");
     const bool gradient_domain = integrator == "gdpt" || integrator == "gdmlt";
@@ -646,10 +656,11 @@ int run_render(const RenderOptions& options) {
             {"max_links_per_pixel", adap_set->max_links()}};
     }
     ProgressBar bar(isatty(STDERR_FILENO) != 0, options.quiet);
-    IntegratorResult result = integrator == "pssmlt"  ? run_pssmlt(scene, options, bar)
-                              : integrator == "gdpt"  ? run_gdpt(scene, options, setup, bar)
-                              : integrator == "gdmlt" ? run_gdmlt(scene, options, setup, bar)
-                                                      : run_path(scene, options, bar);
+    IntegratorResult result = integrator == "pssmlt" ? run_pssmlt(scene, options, bar)
+                              : integrator == "gdpt" ? run_gdpt(scene, options, setup, bar)
+                              : integrator == "gdmlt"
+                                  ? run_gdmlt(scene, options, setup, bar)
+                                  : run_path(scene, options, bar, integrator == "ptracer");
     if (features) {
         // Interrupted during the feature pass: the render stopped at once too, and both are
         // partial.
@@ -684,7 +695,8 @@ int run_render(const RenderOptions& options) {
     stats["partial"] = result.partial;
     stats["scene"] = {{"features", features_json(scene.features())}, {"counts", scene.counts()}};
     stats["machinery"] = {
-        {"next_event_estimation", true},
+        {"next_event_estimation", integrator != "ptracer"},
+        {"light_tracing", integrator == "ptracer"},
         {"shift_mappings", gradient_domain},
         {"half_vector_or_replay_through_specular",
          gradient_domain && scene.features().specular_chains_possible},
@@ -765,7 +777,7 @@ int main(int argc, char** argv) {
     render_cmd->add_option("-D,--define", render.defines,
                            "Scene parameter name=value (overrides <default>)");
     render_cmd->add_option("--integrator", render.integrator,
-                           "path | pssmlt | gdpt | gdmlt (default: the scene's)");
+                           "path | ptracer | pssmlt | gdpt | gdmlt (default: the scene's)");
     auto* spp_opt =
         render_cmd->add_option("--spp", render.spp, "Samples per pixel (default: the scene's)")
             ->check(CLI::PositiveNumber);

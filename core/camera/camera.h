@@ -17,6 +17,21 @@ struct Film {
     int crop_height = 576;
 };
 
+/// A world point as the camera sees it: where on the film it lands and the importance there
+/// (light tracing and BDPT connect light-subpath vertices to the camera through this).
+struct CameraConnection {
+    Vec2f film_position = Vec2f::Zero();  // full-film pixels ((0,0) = top-left corner)
+    Vec3f direction = Vec3f::UnitZ();     // unit, world, from the camera to the point
+    float distance = 0.f;                 // from the camera position to the point
+    /// W(w) = dA_film / dw: film area in pixels per steradian of directions at the pinhole.
+    /// With the box pixel filter a pixel's value is the mean radiance over its unit film area,
+    /// I_j = integral over pixel j of L dA = integral of W_j(w) L(w) dw (Veach 1997, eq. 4.19
+    /// with the pinhole's delta in position), so a light subpath that reaches the pinhole along
+    /// w adds W(w) times its radiance-like weight to the pixel it lands in.
+    float importance = 0.f;
+    bool valid() const { return importance > 0.f; }
+};
+
 class PerspectiveCamera {
   public:
     PerspectiveCamera() = default;
@@ -26,6 +41,14 @@ class PerspectiveCamera {
 
     /// Ray through a position on the full film, in pixels ((0,0) = top-left corner).
     Ray generate_ray(const Vec2f& film_position) const;
+
+    /// The pinhole's view of world point `p`: invalid when `p` lies behind the near clip
+    /// plane (camera rays start there) or outside the crop window.
+    CameraConnection connect(const Vec3f& p) const;
+
+    /// Solid-angle density with which generate_ray, at film positions uniform over the crop
+    /// window, produces world direction `w` (unit): W(w) / (crop pixel count); 0 outside.
+    float pdf_direction_solid_angle(const Vec3f& w) const;
 
     const Film& film() const { return film_; }
     const Transform& world_from_camera() const { return world_from_camera_; }
@@ -39,6 +62,19 @@ class PerspectiveCamera {
     Vec3f position_ = Vec3f::Zero();
     float tan_half_fov_x_ = 1.f, tan_half_fov_y_ = 1.f;
     float near_clip_ = 0.01f;
+    // For the inverse map (world point -> film): the camera-space axes in world space (the
+    // image plane z = 1 is axis_z_ + X axis_x_ + Y axis_y_), the inverse of their matrix, the
+    // plane's unit normal and the world area one pixel covers on it. to_world may scale: all
+    // of this is in world measure.
+    Vec3f axis_x_ = Vec3f::UnitX(), axis_y_ = Vec3f::UnitY(), axis_z_ = Vec3f::UnitZ();
+    Mat3f camera_from_world_linear_ = Mat3f::Identity();
+    Vec3f plane_normal_ = Vec3f::UnitZ();
+    float pixel_area_on_plane_ = 1.f;
+
+    /// Film position and importance of the world direction `d` (any length) from the
+    /// pinhole, or importance 0 when it misses the crop window; `camera_z` (optional) gets the
+    /// camera-space depth of position_ + d.
+    CameraConnection project(const Vec3f& d, float* camera_z) const;
 };
 
 }  // namespace gdmlt

@@ -104,31 +104,9 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
 
     if (const auto* area = std::get_if<AreaEmitter>(&e)) {
         const Shape& shape = shapes_[static_cast<std::size_t>(area->shape)];
-        Vec3f p, n;
-        Vec2f uv = Vec2f::Zero();
-        if (area->radiance.is_constant()) {
-            const ShapeSample ps = shape.sample_area(u, u_remapped);
-            p = ps.p;
-            n = ps.n_geometric;
-        } else {
-            // Textured radiance needs the uv of the point: sample uniformly by area through
-            // the shape's own parametrisation (same density 1 / area as sample_area).
-            SurfaceInteraction at;
-            const Distribution1D& triangles = textured_emitter_triangles_[index];
-            if (triangles.valid()) {
-                const auto t = static_cast<std::uint32_t>(triangles.sample(u_remapped));
-                at = shape.interaction_at(t, warp::square_to_uniform_triangle(u));
-            } else {
-                const Vec3f dir = warp::square_to_uniform_sphere(u);
-                float phi = std::atan2(dir.y(), dir.x());
-                if (phi < 0.f) phi += 2.f * kPi;
-                at = shape.interaction_at(
-                    0, Vec2f(phi * (0.5f * kInvPi), safe_acos(dir.z()) * kInvPi));
-            }
-            p = at.p;
-            n = at.n_geometric;
-            uv = at.uv;
-        }
+        const AreaPoint point = sample_area_emitter_point(index, u_remapped, u);
+        const Vec3f p = point.p, n = point.n;
+        const Vec2f uv = point.uv;
         const float area_total = shape.surface_area();
         const Vec3f d = p - ref_p;
         const float dist2 = d.squaredNorm();
@@ -180,6 +158,161 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
     }
     if (!std::isfinite(s.pdf_solid_angle) || !is_finite(s.radiance)) return EmitterSample{};
     return s;
+}
+
+Scene::AreaPoint Scene::sample_area_emitter_point(std::size_t index, float u_primitive,
+                                                  const Vec2f& u) const {
+    const auto& area = std::get<AreaEmitter>(emitters_[index]);
+    const Shape& shape = shapes_[static_cast<std::size_t>(area.shape)];
+    AreaPoint out;
+    if (area.radiance.is_constant()) {
+        const ShapeSample ps = shape.sample_area(u, u_primitive);
+        out.p = ps.p;
+        out.n = ps.n_geometric;
+        return out;
+    }
+    // Textured radiance needs the uv of the point: sample uniformly by area through the
+    // shape's own parametrisation (same density 1 / area as sample_area).
+    SurfaceInteraction at;
+    const Distribution1D& triangles = textured_emitter_triangles_[index];
+    if (triangles.valid()) {
+        const auto t = static_cast<std::uint32_t>(triangles.sample(u_primitive));
+        at = shape.interaction_at(t, warp::square_to_uniform_triangle(u));
+    } else {
+        const Vec3f dir = warp::square_to_uniform_sphere(u);
+        float phi = std::atan2(dir.y(), dir.x());
+        if (phi < 0.f) phi += 2.f * kPi;
+        at = shape.interaction_at(0, Vec2f(phi * (0.5f * kInvPi), safe_acos(dir.z()) * kInvPi));
+    }
+    out.p = at.p;
+    out.n = at.n_geometric;
+    out.uv = at.uv;
+    return out;
+}
+
+EmittedRay Scene::sample_emitted_ray(float u_select, const Vec2f& u_position,
+                                     const Vec2f& u_direction) const {
+    EmittedRay r;
+    if (!emitter_selection_.valid()) return r;
+    float u_remapped = 0.f;
+    const std::size_t index = emitter_selection_.sample(u_select, &u_remapped);
+    const float pmf = emitter_selection_.pmf(index);
+    const Emitter& e = emitters_[index];
+    r.emitter = static_cast<int>(index);
+    // A point on the disk of the bounding sphere's radius perpendicular to `towards_light`,
+    // one radius out from the centre on the light's side (lights at infinity).
+    const auto disk_origin = [&](const Vec3f& towards_light) {
+        const Vec2f d = warp::square_to_uniform_disk_concentric(u_position) * bounds_radius_;
+        const Frame frame = Frame::from_normal(towards_light);
+        return Vec3f(bounds_center_ + bounds_radius_ * towards_light + d.x() * frame.s +
+                     d.y() * frame.t);
+    };
+    const float disk_pdf = 1.f / (kPi * bounds_radius_ * bounds_radius_);
+
+    if (std::holds_alternative<AreaEmitter>(e)) {
+        const auto& area = std::get<AreaEmitter>(e);
+        const Shape& shape = shapes_[static_cast<std::size_t>(area.shape)];
+        const AreaPoint point = sample_area_emitter_point(index, u_remapped, u_position);
+        const float area_total = shape.surface_area();
+        if (!(area_total > 0.f)) return EmittedRay{};
+        // Emission leaves the front side only: cosine-weighted about the normal, so that the
+        // weight Le cos / pdf is Le pi area / pmf whatever the direction.
+        const Vec3f local = warp::square_to_cosine_hemisphere(u_direction);
+        r.origin = point.p;
+        r.n_geometric = point.n;
+        r.direction = Frame::from_normal(point.n).to_world(local);
+        r.radiance = area.radiance.eval(point.uv);
+        r.pdf_position = pmf / area_total;
+        r.pdf_direction = warp::square_to_cosine_hemisphere_pdf_solid_angle(local);
+        if (!(r.pdf_direction > 0.f)) return EmittedRay{};
+        r.weight = r.radiance * (local.z() / (r.pdf_position * r.pdf_direction));
+    } else if (const auto* point = std::get_if<PointEmitter>(&e)) {
+        r.origin = point->position;
+        r.direction = warp::square_to_uniform_sphere(u_direction);
+        r.radiance = point->intensity;
+        r.pdf_position = pmf;
+        r.pdf_direction = warp::square_to_uniform_sphere_pdf_solid_angle();
+        r.delta_position = true;
+        r.weight = r.radiance / (r.pdf_position * r.pdf_direction);
+    } else if (const auto* spot = std::get_if<SpotEmitter>(&e)) {
+        // Uniform over the cutoff cone: the falloff is not worth inverting (Mitsuba 3 does
+        // the same).
+        r.origin = spot->position;
+        r.direction = spot->local_from_world.transpose() *
+                      warp::square_to_uniform_cone(u_direction, spot->cos_cutoff);
+        r.radiance = spot->intensity_towards(r.direction);
+        r.pdf_position = pmf;
+        r.pdf_direction = warp::square_to_uniform_cone_pdf_solid_angle(spot->cos_cutoff);
+        r.delta_position = true;
+        r.weight = r.radiance / (r.pdf_position * r.pdf_direction);
+    } else if (const auto* directional = std::get_if<DirectionalEmitter>(&e)) {
+        r.direction = directional->direction;
+        r.origin = disk_origin(-directional->direction);
+        r.radiance = directional->irradiance;
+        r.pdf_position = pmf * disk_pdf;
+        r.pdf_direction = 1.f;
+        r.delta_direction = true;
+        r.at_infinity = true;
+        r.weight = r.radiance / r.pdf_position;
+    } else {
+        // The environment as one light (sample_emitter): a direction towards it from the chosen
+        // emitter's sampler, with the radiance and density of all of them; the ray comes back.
+        Vec3f towards = Vec3f::Zero();
+        if (const auto* envmap = std::get_if<EnvmapEmitter>(&e)) {
+            const EnvmapEmitter::Sample es = envmap->sample(u_direction);
+            if (!(es.pdf_solid_angle > 0.f)) return EmittedRay{};
+            towards = es.direction;
+        } else {
+            towards = warp::square_to_uniform_sphere(u_direction);
+        }
+        r.direction = -towards;
+        r.origin = disk_origin(towards);
+        r.radiance = environment(towards);
+        r.pdf_position = disk_pdf;
+        r.pdf_direction = pdf_environment_solid_angle(towards);
+        r.at_infinity = true;
+        if (!(r.pdf_direction > 0.f)) return EmittedRay{};
+        r.weight = r.radiance / (r.pdf_position * r.pdf_direction);
+    }
+    if (!r.valid() || !is_finite(r.weight) || !r.origin.allFinite()) return EmittedRay{};
+    return r;
+}
+
+EmissionPdf Scene::pdf_emitted_ray(int emitter, const Vec3f& n_geometric,
+                                   const Vec3f& direction) const {
+    EmissionPdf pdf;
+    if (emitter < 0 || static_cast<std::size_t>(emitter) >= emitters_.size()) return pdf;
+    const auto index = static_cast<std::size_t>(emitter);
+    const float pmf = emitter_selection_.pmf(index);
+    const Emitter& e = emitters_[index];
+    if (const auto* area = std::get_if<AreaEmitter>(&e)) {
+        const float area_total = shapes_[static_cast<std::size_t>(area->shape)].surface_area();
+        const float cos_theta = n_geometric.dot(direction);
+        if (!(area_total > 0.f) || !(cos_theta > 0.f)) return pdf;
+        pdf.position = pmf / area_total;
+        pdf.direction = cos_theta * kInvPi;
+    } else if (std::holds_alternative<PointEmitter>(e)) {
+        pdf.position = pmf;
+        pdf.direction = warp::square_to_uniform_sphere_pdf_solid_angle();
+    } else if (const auto* spot = std::get_if<SpotEmitter>(&e)) {
+        if (!((spot->local_from_world * direction).z() > spot->cos_cutoff)) return pdf;
+        pdf.position = pmf;
+        pdf.direction = warp::square_to_uniform_cone_pdf_solid_angle(spot->cos_cutoff);
+    } else if (std::holds_alternative<DirectionalEmitter>(e)) {
+        pdf.position = pmf / (kPi * bounds_radius_ * bounds_radius_);
+        pdf.direction = 1.f;
+    } else {
+        return pdf_environment_ray(direction);
+    }
+    return pdf;
+}
+
+EmissionPdf Scene::pdf_environment_ray(const Vec3f& direction) const {
+    EmissionPdf pdf;
+    if (infinite_emitters_.empty()) return pdf;
+    pdf.direction = pdf_environment_solid_angle(-direction);
+    if (pdf.direction > 0.f) pdf.position = 1.f / (kPi * bounds_radius_ * bounds_radius_);
+    return pdf;
 }
 
 Rgb Scene::emitted(const SurfaceInteraction& si, const Vec3f& w) const {

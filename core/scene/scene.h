@@ -72,6 +72,39 @@ struct EmitterSample {
     bool valid() const { return pdf_solid_angle > 0.f; }
 };
 
+/// A ray leaving an emitter: the first vertex and direction of a light subpath (Veach 1997,
+/// sec. 10.2; what pbrt-v4 calls SampleLe). Lights at infinity (directional, environment) send
+/// it from a disk of the scene's bounding-sphere radius outside the scene, perpendicular to the
+/// direction, so that every point of the scene is reached with the same area density.
+struct EmittedRay {
+    Vec3f origin = Vec3f::Zero();
+    Vec3f n_geometric = Vec3f::Zero();  // area emitters: the unit surface normal; else zero
+    Vec3f direction = Vec3f::UnitZ();   // unit, away from the emitter
+    /// What leaves along `direction`: radiance (area, environment), intensity in W/sr (point,
+    /// spot), irradiance on a surface facing the beam (directional).
+    Rgb radiance = Rgb::Zero();
+    /// Area density of `origin` (per m^2; point and spot lights: a probability) and solid-angle
+    /// density of `direction` (directional light: 1, a delta). Their product includes the
+    /// choice of the emitter: in the position density for bounded emitters, in the direction
+    /// density for the environment (its lights are sampled as one, as in sample_emitter).
+    float pdf_position = 0.f;
+    float pdf_direction = 0.f;
+    /// radiance |cos theta| / (pdf_position pdf_direction): the light subpath's throughput after
+    /// its first vertex (the cosine at the origin; 1 for points and disks facing the beam).
+    Rgb weight = Rgb::Zero();
+    int emitter = -1;  // the chosen emitter (for the environment: the one whose sampler ran)
+    bool delta_position = false;   // point and spot lights
+    bool delta_direction = false;  // directional light
+    bool at_infinity = false;      // directional and environment lights
+    bool valid() const { return pdf_position > 0.f && pdf_direction > 0.f; }
+};
+
+/// The densities of an emitted ray (EmittedRay's pdf_position and pdf_direction), for MIS.
+struct EmissionPdf {
+    float position = 0.f;
+    float direction = 0.f;
+};
+
 class Scene {
   public:
     Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emitter> emitters,
@@ -105,6 +138,24 @@ class Scene {
     /// so MIS weights agree on both sides.
     EmitterSample sample_emitter(const Vec3f& ref_p, float u_select, const Vec2f& u) const;
 
+    /// A ray leaving an emitter chosen by power as in sample_emitter (`u_select`), at a point
+    /// chosen by `u_position` (uniform by area) in a direction chosen by `u_direction`:
+    /// cosine-weighted about an area light's normal, uniform over the sphere (point light) or
+    /// the spot's cone, the beam of a directional light, importance-sampled environment
+    /// directions. Invalid (pdfs 0) when nothing can be emitted that way.
+    EmittedRay sample_emitted_ray(float u_select, const Vec2f& u_position,
+                                  const Vec2f& u_direction) const;
+    /// Densities with which sample_emitted_ray produces a ray leaving bounded emitter `emitter`
+    /// along unit `direction`; `n_geometric` is the normal at the point of an area emitter.
+    EmissionPdf pdf_emitted_ray(int emitter, const Vec3f& n_geometric,
+                                const Vec3f& direction) const;
+    /// Same for a ray from the environment travelling along unit `direction` into the scene.
+    EmissionPdf pdf_environment_ray(const Vec3f& direction) const;
+    /// Radius of the disk that rays of lights at infinity start from (the scene's bounding
+    /// sphere), centred on bounds_center().
+    float bounds_radius() const { return bounds_radius_; }
+    Vec3f bounds_center() const { return bounds_center_; }
+
     /// Radiance leaving emitter surface point `si` towards direction `w` (unit, world).
     Rgb emitted(const SurfaceInteraction& si, const Vec3f& w) const;
     /// Radiance from infinite emitters arriving along -`direction` (a ray that missed).
@@ -122,6 +173,14 @@ class Scene {
     }
 
   private:
+    struct AreaPoint {
+        Vec3f p = Vec3f::Zero(), n = Vec3f::Zero();
+        Vec2f uv = Vec2f::Zero();
+    };
+    /// A point uniformly distributed by area on area emitter `index` (density 1 / area), with
+    /// its uv when the radiance is textured.
+    AreaPoint sample_area_emitter_point(std::size_t index, float u_primitive, const Vec2f& u) const;
+
     std::vector<Shape> shapes_;
     std::vector<Bsdf> bsdfs_;
     std::vector<Emitter> emitters_;

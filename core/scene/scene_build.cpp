@@ -433,12 +433,12 @@ struct Builder {
     }
 
     void build_integrator(const ObjectDesc& obj) {
-        static const std::set<std::string> known = {"path", "pssmlt", "gdpt", "gdmlt"};
+        static const std::set<std::string> known = {"path", "ptracer", "pssmlt", "gdpt", "gdmlt"};
         integrator.desc = obj;
         integrator.type = obj.type;
         if (!known.count(obj.type)) {
             diagnostics.unknown(obj.loc, "unknown integrator '" + obj.type +
-                                             "' (supported: path, pssmlt, gdpt, gdmlt)");
+                                             "' (supported: path, ptracer, pssmlt, gdpt, gdmlt)");
             integrator.type = "path";
         }
         Properties props(obj, diagnostics);
@@ -450,7 +450,9 @@ struct Builder {
         if (integrator.rr_depth < 1)
             throw InputError(props.loc_of("rr_depth"), "rr_depth must be at least 1");
         // The other integrators validate their own properties; the path tracer knows all of its.
-        if (obj.type == "path") props.check_all_used();
+        // Mitsuba 3's ptracer also has samples_per_pass, which only splits its work.
+        if (obj.type == "ptracer") props.get_int32("samples_per_pass", -1);
+        if (obj.type == "path" || obj.type == "ptracer") props.check_all_used();
     }
 
     void build_sensor(const ObjectDesc& obj) {

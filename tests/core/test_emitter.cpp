@@ -274,3 +274,178 @@ TEST(SceneEmitters, RejectsInvalidEmitterParameters) {
 
 }  // namespace
 }  // namespace gdmlt
+
+namespace gdmlt {
+namespace {
+
+// --- Emitted rays: the first vertex of light subpaths (BDPT, light tracing) ---
+
+/// One emitter of each kind that sample_emitted_ray handles, each alone in a scene with a
+/// unit sphere so that the bounds (and the disk lights at infinity start from) are known.
+struct EmitterCase {
+    const char* name;
+    std::string xml;
+    /// Emitted power (channel 0), computed here from the definition, not from the sampler.
+    double power;
+};
+
+std::vector<EmitterCase> emitter_cases(const std::string& envmap_path) {
+    // Spot, intensity 8, cutoff 30, beam 10: I(theta) = 8 inside 10 degrees, falling linearly
+    // in angle to 0 at 30; its power 2 pi integral of I sin(theta) dtheta by the midpoint rule.
+    double spot_power = 0.0;
+    const int steps = 200000;
+    const double cutoff = degrees_to_radians(30.0), beam = degrees_to_radians(10.0);
+    for (int i = 0; i < steps; ++i) {
+        const double theta = (i + 0.5) * cutoff / steps;
+        const double intensity = theta <= beam ? 8.0 : 8.0 * (cutoff - theta) / (cutoff - beam);
+        spot_power += 2.0 * kPi * intensity * std::sin(theta) * cutoff / steps;
+    }
+    const std::string sphere = R"(<shape type="sphere"><float name="radius" value="1"/></shape>)";
+    // The unit sphere and the 2 x 2 rectangle at z = 1.5 are bounded by a box whose half
+    // diagonal is the disk radius r: sqrt(1 + 1 + (1.5 + 1)^2 / 4) ... computed by the scene.
+    return {
+        {"area rectangle",
+         sphere + R"(<shape type="rectangle"><transform name="to_world"><scale value="0.5, 2, 1"/>
+            <rotate x="1" angle="30"/><translate z="1.5"/></transform>
+            <emitter type="area"><rgb name="radiance" value="3, 2, 1"/></emitter></shape>)",
+         kPi * 3.0 * (1.0 * 4.0)},  // pi L A, A = 1 x 4
+        {"area sphere",
+         R"(<shape type="sphere"><float name="radius" value="0.5"/>
+            <emitter type="area"><rgb name="radiance" value="2"/></emitter></shape>)",
+         kPi * 2.0 * (4.0 * kPi * 0.25)},
+        {"point", sphere + R"(<emitter type="point"><point name="position" value="0, 0, 2"/>
+            <rgb name="intensity" value="3"/></emitter>)",
+         4.0 * kPi * 3.0},
+        {"spot", sphere + R"(<emitter type="spot"><rgb name="intensity" value="8"/>
+            <float name="cutoff_angle" value="30"/><float name="beam_width" value="10"/>
+            <transform name="to_world"><lookat origin="0.3, 0.2, 2" target="0, 0, 0"
+            up="0, 1, 0"/></transform></emitter>)",
+         spot_power},
+        // Lights at infinity: the power through the disk, E pi r^2 and pi r^2 integral of L
+        // over the sphere (constant: 4 pi L); r is filled in by the test.
+        {"directional", sphere + R"(<emitter type="directional"><vector name="direction"
+            value="1, -2, 0.5"/><rgb name="irradiance" value="3"/></emitter>)",
+         3.0},
+        {"constant", sphere + R"(<emitter type="constant"><rgb name="radiance" value="0.7"/>
+            </emitter>)",
+         4.0 * kPi * 0.7},
+        {"envmap",
+         sphere + R"(<emitter type="envmap"><string name="filename" value=")" + envmap_path +
+             R"("/><transform name="to_world"><rotate y="1" angle="30"/>
+            </transform></emitter>)",
+         0.0},  // filled in by the test from environment() (an independent quadrature)
+    };
+}
+
+TEST(EmittedRays, WeightsAverageToTheEmittedPower) {
+    // E[weight] = integral of Le |cos| over positions and directions = the emitted power, for
+    // any correct pair of sampler and pdfs: the power is computed here from each light's
+    // definition (for the environment by quadrature of environment() over the sphere). Seed
+    // 11, 400k samples per emitter: the standard error must be below 1% of the power (so a
+    // wrong factor of pi or of the pmf fails) and the mean within 5 of them (seven tests, a
+    // false alarm has probability 4e-6). A last scene with all bounded lights together checks
+    // the emitter choice: the powers add.
+    const std::string envmap_path = write_test_envmap();
+    std::vector<EmitterCase> cases = emitter_cases(envmap_path);
+    std::string all_bounded;
+    double all_power = 0.0;
+    for (const EmitterCase& c : cases)
+        if (std::string(c.name).find("area") == 0 || std::string(c.name) == "point" ||
+            std::string(c.name) == "spot") {
+            all_bounded += c.xml;
+            all_power += c.power;
+        }
+    // The unit sphere appears several times: that adds no power.
+    cases.push_back({"all bounded", all_bounded, all_power});
+    for (EmitterCase& c : cases) {
+        const Scene scene = test::scene_from_xml(c.xml);
+        const double r = scene.bounds_radius();
+        if (std::string(c.name) == "directional") c.power *= kPi * r * r;
+        if (std::string(c.name) == "constant") c.power *= kPi * r * r;
+        if (std::string(c.name) == "envmap") {
+            // Midpoint quadrature in (z, phi), 1000 x 2000: the map is bilinear between texels
+            // and the grid resolves each texel by tens of points.
+            double integral = 0.0;
+            const int nz = 1000, nphi = 2000;
+            for (int i = 0; i < nz; ++i)
+                for (int j = 0; j < nphi; ++j) {
+                    const double z = -1.0 + 2.0 * (i + 0.5) / nz;
+                    const double phi = 2.0 * kPi * (j + 0.5) / nphi;
+                    const double s = std::sqrt(1.0 - z * z);
+                    const Vec3f d(static_cast<float>(s * std::cos(phi)),
+                                  static_cast<float>(s * std::sin(phi)), static_cast<float>(z));
+                    integral += scene.environment(d)[0] * (2.0 / nz) * (2.0 * kPi / nphi);
+                }
+            c.power = kPi * r * r * integral;
+        }
+        Pcg32 rng(11, 1);
+        const int n = 400000;
+        double sum = 0.0, sum2 = 0.0;
+        int valid = 0;
+        for (int i = 0; i < n; ++i) {
+            const EmittedRay ray =
+                scene.sample_emitted_ray(rng.next_float(), {rng.next_float(), rng.next_float()},
+                                         {rng.next_float(), rng.next_float()});
+            if (!ray.valid()) continue;
+            ++valid;
+            const double w = ray.weight[0];
+            sum += w;
+            sum2 += w * w;
+            // The densities it reports are the ones pdf_emitted_ray gives for its ray.
+            const EmissionPdf pdf =
+                scene.pdf_emitted_ray(ray.emitter, ray.n_geometric, ray.direction);
+            ASSERT_NEAR(pdf.position, ray.pdf_position, 1e-5f * ray.pdf_position) << c.name;
+            ASSERT_NEAR(pdf.direction, ray.pdf_direction, 1e-4f * ray.pdf_direction) << c.name;
+            // Lights at infinity start outside the scene's bounding sphere.
+            if (ray.at_infinity) {
+                ASSERT_GT((ray.origin - scene.bounds_center()).norm(), 0.999f * r) << c.name;
+            }
+        }
+        EXPECT_GT(valid, n * 9 / 10) << c.name;
+        const double mean = sum / n;
+        const double se = std::sqrt(std::max(sum2 / n - mean * mean, 0.0) / (n - 1));
+        EXPECT_LT(se, 0.01 * c.power) << c.name;
+        // Lights sampled exactly by their emission (area, point, directional, constant) give
+        // every ray the same weight (se 0): then float rounding, 1e-5, is the tolerance.
+        EXPECT_NEAR(mean, c.power, 5.0 * se + 1e-5 * c.power) << c.name << ": se " << se;
+    }
+    std::filesystem::remove(envmap_path);
+}
+
+TEST(EmittedRays, DirectionsFollowTheirPdf) {
+    // Chi-square of sampled directions against pdf_emitted_ray's direction density: cosine
+    // about a rectangle light's normal, uniform (point), uniform in a spot's cone, the
+    // environment's importance sampling (the ray travels opposite to the sampled direction).
+    // Seed 1, 200k samples, 64 x 64 sub-samples per bin (the envmap's density is steep near
+    // its poles); Sidak over the four.
+    const std::string envmap_path = write_test_envmap();
+    const std::vector<EmitterCase> cases = emitter_cases(envmap_path);
+    test::Chi2Settings settings;
+    settings.sub_samples = 64;
+    for (const EmitterCase& c : cases) {
+        const std::string name = c.name;
+        if (name != "area rectangle" && name != "point" && name != "spot" && name != "envmap")
+            continue;
+        const Scene scene = test::scene_from_xml(c.xml);
+        Vec3f normal = Vec3f::Zero();
+        int emitter = -1;
+        const auto r = test::chi2_sphere_test(
+            [&](Pcg32& rng) -> std::optional<Vec3f> {
+                const EmittedRay ray =
+                    scene.sample_emitted_ray(rng.next_float(), {rng.next_float(), rng.next_float()},
+                                             {rng.next_float(), rng.next_float()});
+                if (!ray.valid()) return std::nullopt;
+                normal = ray.n_geometric;  // one normal: the rectangle is flat
+                emitter = ray.emitter;
+                return ray.direction;
+            },
+            [&](const Vec3f& w) { return scene.pdf_emitted_ray(emitter, normal, w).direction; },
+            settings);
+        EXPECT_GT(r.p_value, test::sidak_alpha(4)) << name << ": " << r.summary;
+        EXPECT_NEAR(r.pdf_integral, 1.0, 0.01) << name << ": " << r.summary;
+    }
+    std::filesystem::remove(envmap_path);
+}
+
+}  // namespace
+}  // namespace gdmlt
