@@ -22,6 +22,7 @@
 #include "core/image/image_io.h"
 #include "core/render/adap_selection.h"
 #include "core/render/feature_pass.h"
+#include "core/render/render_bdpt.h"
 #include "core/render/render_path.h"
 #include "core/render/render_ptracer.h"
 #include "core/scene/scene.h"
@@ -308,17 +309,17 @@ void apply_mutation_options(const RenderOptions& options, mlt::MutationSettings&
     if (options.bootstrap) bootstrap = *options.bootstrap;
 }
 
-/// The path tracer, or with `light_tracing` the light tracer (ptracer): the same settings and
-/// stats (light paths per pixel as spp).
+/// The path tracer, the light tracer (ptracer: light paths per pixel as spp) or BDPT: the same
+/// settings and stats.
 IntegratorResult run_path(const Scene& scene, const RenderOptions& options, ProgressBar& bar,
-                          bool light_tracing) {
+                          const std::string& integrator) {
     RenderSettings settings;
     apply_sample_budget(scene, options, settings);
 
     IntegratorResult r;
     r.seed = settings.seed;
     r.config = {
-        {"integrator", light_tracing ? "ptracer" : "path"},
+        {"integrator", integrator},
         {"spp", options.time_s > 0.0 && options.spp == 0 ? json(nullptr) : json(settings.spp)},
         {"time_budget_s", settings.time_budget_s},
         {"seed", settings.seed},
@@ -328,9 +329,17 @@ IntegratorResult run_path(const Scene& scene, const RenderOptions& options, Prog
     const auto on_progress = [&](const RenderProgress& p) {
         bar.update(p.fraction, p.samples, p.elapsed_s);
     };
-    const RenderOutput out = light_tracing
-                                 ? render_ptracer(scene, settings, &g_interrupted, on_progress)
-                                 : render_path(scene, settings, &g_interrupted, on_progress);
+    BdptRenderSettings bdpt;
+    bdpt.spp = settings.spp;
+    bdpt.time_budget_s = settings.time_budget_s;
+    bdpt.seed = settings.seed;
+    bdpt.bdpt.max_depth = settings.path.max_depth;
+    bdpt.bdpt.rr_depth = settings.path.rr_depth;
+    bdpt.bdpt.hide_emitters = settings.path.hide_emitters;
+    const RenderOutput out =
+        integrator == "ptracer" ? render_ptracer(scene, settings, &g_interrupted, on_progress)
+        : integrator == "bdpt"  ? render_bdpt(scene, bdpt, &g_interrupted, on_progress)
+                                : render_path(scene, settings, &g_interrupted, on_progress);
     const RenderStats& s = out.stats;
     r.image = out.image;
     r.partial = s.interrupted;
@@ -517,7 +526,10 @@ double peak_bytes_per_pixel(const std::string& integrator, bool features, bool a
                    // The light tracer: the path tracer's image plus two double RGB sums,
                    // counted from its buffers (its splat batches are bounded, ~50 MB).
                    : integrator == "ptracer" ? 93.0
-                                             : 45.0;
+                   // BDPT: the path tracer's film plus a double RGB light image and the
+                   // splats of one pass (about 16 bytes per light vertex seen by the camera).
+                   : integrator == "bdpt" ? 120.0
+                                          : 45.0;
     if (features) bytes += 63.0;
     if (adap) bytes += 353.0;
     return bytes;
@@ -554,10 +566,11 @@ int run_render(const RenderOptions& options) {
     // Effective configuration: defaults < scene file < command line.
     const std::string integrator =
         options.integrator.empty() ? scene.integrator().type : options.integrator;
-    if (integrator != "path" && integrator != "ptracer" && integrator != "pssmlt" &&
-        integrator != "gdpt" && integrator != "gdmlt")
-        throw InputError("integrator '" + integrator +
-                         "' is not available (available: path, ptracer, pssmlt, gdpt, gdmlt)");
+    if (integrator != "path" && integrator != "ptracer" && integrator != "bdpt" &&
+        integrator != "pssmlt" && integrator != "gdpt" && integrator != "gdmlt")
+        throw InputError(
+            "integrator '" + integrator +
+            "' is not available (available: path, ptracer, bdpt, pssmlt, gdpt, gdmlt)");
     if (options.max_depth && (*options.max_depth == 0 || *options.max_depth < -1))
         throw InputError("--max-depth must be -1 or at least 1");
     const bool gradient_domain = integrator == "gdpt" || integrator == "gdmlt";
@@ -656,11 +669,10 @@ int run_render(const RenderOptions& options) {
             {"max_links_per_pixel", adap_set->max_links()}};
     }
     ProgressBar bar(isatty(STDERR_FILENO) != 0, options.quiet);
-    IntegratorResult result = integrator == "pssmlt" ? run_pssmlt(scene, options, bar)
-                              : integrator == "gdpt" ? run_gdpt(scene, options, setup, bar)
-                              : integrator == "gdmlt"
-                                  ? run_gdmlt(scene, options, setup, bar)
-                                  : run_path(scene, options, bar, integrator == "ptracer");
+    IntegratorResult result = integrator == "pssmlt"  ? run_pssmlt(scene, options, bar)
+                              : integrator == "gdpt"  ? run_gdpt(scene, options, setup, bar)
+                              : integrator == "gdmlt" ? run_gdmlt(scene, options, setup, bar)
+                                                      : run_path(scene, options, bar, integrator);
     if (features) {
         // Interrupted during the feature pass: the render stopped at once too, and both are
         // partial.
@@ -696,7 +708,7 @@ int run_render(const RenderOptions& options) {
     stats["scene"] = {{"features", features_json(scene.features())}, {"counts", scene.counts()}};
     stats["machinery"] = {
         {"next_event_estimation", integrator != "ptracer"},
-        {"light_tracing", integrator == "ptracer"},
+        {"light_tracing", integrator == "ptracer" || integrator == "bdpt"},
         {"shift_mappings", gradient_domain},
         {"half_vector_or_replay_through_specular",
          gradient_domain && scene.features().specular_chains_possible},
@@ -777,7 +789,7 @@ int main(int argc, char** argv) {
     render_cmd->add_option("-D,--define", render.defines,
                            "Scene parameter name=value (overrides <default>)");
     render_cmd->add_option("--integrator", render.integrator,
-                           "path | ptracer | pssmlt | gdpt | gdmlt (default: the scene's)");
+                           "path | ptracer | bdpt | pssmlt | gdpt | gdmlt (default: the scene's)");
     auto* spp_opt =
         render_cmd->add_option("--spp", render.spp, "Samples per pixel (default: the scene's)")
             ->check(CLI::PositiveNumber);

@@ -17,6 +17,10 @@
 
 namespace gdmlt {
 
+/// Pixels are sampled in square tiles of this size, each tile by one task at a time; tile
+/// index (y / size) * tiles_x + x / size, row-major over the crop window.
+inline constexpr int kPixelPassTileSize = 16;
+
 struct PixelPassSettings {
     int spp = 16;                // budget (upper bound with a time budget)
     double time_budget_s = 0.0;  // 0: none
@@ -39,7 +43,7 @@ PixelPassResult run_pixel_passes(const Film& film, const PixelPassSettings& sett
                                  PassFn&& on_pass_done,
                                  std::atomic<std::uint64_t>* samples_done = nullptr) {
     using Clock = std::chrono::steady_clock;
-    constexpr int kTileSize = 16;
+    constexpr int kTileSize = kPixelPassTileSize;
     const auto seconds_since = [](Clock::time_point t) {
         return std::chrono::duration<double>(Clock::now() - t).count();
     };

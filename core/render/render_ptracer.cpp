@@ -8,6 +8,7 @@
 #include <cmath>
 #include <vector>
 
+#include "core/path/bidirectional.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/sample_stream.h"
 
@@ -38,18 +39,6 @@ struct ChunkResult {
     PathCounters counters;
     std::uint64_t nonfinite = 0;
 };
-
-/// Veach's correction for shading normals in adjoint transport (Veach 1997, eq. 5.19; pbrt-v4
-/// and its issues #13/#385): a light subpath vertex's BSDF factor f* |cos_s(wi)| becomes
-/// f* |wo.n_s| |wi.n_g| / |wo.n_g|, so that light leaving a smooth-shaded surface is not
-/// brighter than the radiance a camera path would compute. `wo` points back along the light
-/// subpath, `wi` onwards (both world, unit). 1 where shading and geometric normals agree.
-float shading_normal_correction(const SurfaceInteraction& si, const Vec3f& wo, const Vec3f& wi) {
-    const float wo_ns = std::abs(wo.dot(si.shading.n)), wo_ng = std::abs(wo.dot(si.n_geometric));
-    const float wi_ns = std::abs(wi.dot(si.shading.n)), wi_ng = std::abs(wi.dot(si.n_geometric));
-    if (!(wo_ng > 0.f) || !(wi_ns > 0.f)) return 0.f;
-    return wo_ns * wi_ng / (wo_ng * wi_ns);
-}
 
 class LightTracer {
   public:
@@ -112,7 +101,7 @@ class LightTracer {
                     (si.n_geometric.dot(wo) * si.n_geometric.dot(to_camera) > 0.f);
                 if (c.valid() && sides_agree) {
                     const Rgb f = bsdf.eval(si.uv, wo_local, wi_local, TransportMode::Importance) *
-                                  shading_normal_correction(si, wo, to_camera);
+                                  adjoint_shading_correction(si, wo, to_camera);
                     if (!is_black(f))
                         connect(si.p, si.n_geometric, c,
                                 beta * f * (c.importance / (c.distance * c.distance)), out);
@@ -129,7 +118,7 @@ class LightTracer {
             const Vec3f wi = si.shading.to_world(bs.wi);
             const float side = si.n_geometric.dot(wi) * si.n_geometric.dot(wo);
             if (bs.transmission ? side > 0.f : side < 0.f) return;
-            beta *= bs.weight * shading_normal_correction(si, wo, wi);
+            beta *= bs.weight * adjoint_shading_correction(si, wo, wi);
             if (is_black(beta)) return;
             // Russian roulette as the path tracer's (Mitsuba's rule: continue with the
             // throughput's largest channel, at most 0.95) from rr_depth on.

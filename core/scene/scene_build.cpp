@@ -437,8 +437,9 @@ struct Builder {
         integrator.desc = obj;
         integrator.type = obj.type;
         if (!known.count(obj.type)) {
-            diagnostics.unknown(obj.loc, "unknown integrator '" + obj.type +
-                                             "' (supported: path, ptracer, pssmlt, gdpt, gdmlt)");
+            diagnostics.unknown(obj.loc,
+                                "unknown integrator '" + obj.type +
+                                    "' (supported: path, ptracer, bdpt, pssmlt, gdpt, gdmlt)");
             integrator.type = "path";
         }
         Properties props(obj, diagnostics);
@@ -452,7 +453,8 @@ struct Builder {
         // The other integrators validate their own properties; the path tracer knows all of its.
         // Mitsuba 3's ptracer also has samples_per_pass, which only splits its work.
         if (obj.type == "ptracer") props.get_int32("samples_per_pass", -1);
-        if (obj.type == "path" || obj.type == "ptracer") props.check_all_used();
+        if (obj.type == "path" || obj.type == "ptracer" || obj.type == "bdpt")
+            props.check_all_used();
     }
 
     void build_sensor(const ObjectDesc& obj) {

@@ -65,6 +65,25 @@ PixelStatistics pixel_statistics(const std::vector<float>& rgb, int channel) {
     return s;
 }
 
+IndependentRenders independent_renders(const std::function<RenderOutput(std::uint64_t)>& render,
+                                       int runs) {
+    IndependentRenders r;
+    std::vector<double> means;
+    for (int k = 0; k < runs; ++k) {
+        const RenderOutput out = render(100 + static_cast<std::uint64_t>(k));
+        EXPECT_EQ(out.stats.nonfinite_samples_dropped, 0u);
+        means.push_back(mean_luminance(out.image));
+        if (k == 0) r.average = Image(out.image.width, out.image.height, 3);
+        for (std::size_t i = 0; i < out.image.pixels.size(); ++i)
+            r.average.pixels[i] += out.image.pixels[i] / static_cast<float>(runs);
+    }
+    for (double m : means) r.mean += m / runs;
+    double variance = 0.0;
+    for (double m : means) variance += (m - r.mean) * (m - r.mean) / (runs - 1);
+    r.standard_error = std::sqrt(variance / runs);
+    return r;
+}
+
 RenderOutput render_unbounded(const Scene& scene, int spp, std::uint64_t seed) {
     RenderSettings settings;
     settings.spp = spp;

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
 // Scenes built in code for tests: a Mitsuba XML body wrapped into a <scene>, parsed and built.
+#include <functional>
 #include <string>
 
 #include "core/render/render_path.h"
@@ -38,6 +39,18 @@ RenderOutput render_unbounded(const Scene& scene, int spp, std::uint64_t seed);
 /// spread) plus `relative_model_error` * expected, and the budget makes the standard error
 /// smaller than 2% of the expected value (otherwise the test could not fail).
 void expect_image_mean(const Image& image, const Rgb& expected, double relative_model_error);
+
+/// Image mean luminance over independent renders, with its standard error from their spread
+/// (integrators that splat light paths across pixels make pixels correlated, so the per-pixel
+/// spread of one image says nothing), and their average image.
+struct IndependentRenders {
+    double mean = 0.0;
+    double standard_error = 0.0;
+    Image average;
+};
+/// Calls `render(seed)` for seeds 100 .. 100 + runs - 1; every render must drop no sample.
+IndependentRenders independent_renders(const std::function<RenderOutput(std::uint64_t)>& render,
+                                       int runs);
 
 /// A smooth image with distinct values in every pixel and channel (exact round-trip tests).
 Image ramp_image(int w, int h, int channels, float offset);
