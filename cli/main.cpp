@@ -73,6 +73,7 @@ struct RenderOptions {
     std::optional<int> bootstrap;
     std::optional<double> mpp;
     std::optional<int> direct_samples;
+    std::optional<bool> bidirectional;
     // Gradient-domain knobs.
     std::string reconstruct_method;
     std::optional<double> alpha;
@@ -359,6 +360,7 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
     apply_mutation_options(options, settings.mutation, settings.chains, settings.bootstrap_samples);
     if (options.mpp) settings.mutations_per_pixel = *options.mpp;
     if (options.direct_samples) settings.direct_samples = *options.direct_samples;
+    if (options.bidirectional) settings.bidirectional = *options.bidirectional;
     // --spp gives a PSSMLT budget of as many mutations per pixel.
     if (!options.mpp && options.spp > 0) settings.mutations_per_pixel = options.spp;
     settings.time_budget_s = options.time_s;
@@ -381,6 +383,7 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
         {"bootstrap_samples", settings.bootstrap_samples},
         {"kelemen_style_weights", settings.kelemen_weights},
         {"direct_samples", settings.direct_samples},
+        {"bidirectional", settings.bidirectional},
         {"max_depth", settings.path.max_depth},
         {"rr_depth", settings.path.rr_depth},
         {"hide_emitters", settings.path.hide_emitters}};
@@ -833,6 +836,8 @@ int main(int argc, char** argv) {
         ->check(finite_number());
     render_cmd->add_option("--direct-samples", render.direct_samples,
                            "PSSMLT: render direct illumination separately with N path-traced spp");
+    render_cmd->add_option("--bidirectional", render.bidirectional,
+                           "PSSMLT: true = mutate bidirectional (BDPT) samples (false)");
     render_cmd->add_option("--reconstruct", render.reconstruct_method,
                            "Gradient domain: l1 | l2 | cv (l1)");
     render_cmd

@@ -32,6 +32,8 @@ class PrimarySampleVector final : public SampleStream {
     void reject();
 
     float next_1d() override;
+    /// Skipped coordinates are not read: they stay as stale as unread ones (on-demand mutation).
+    void skip(std::size_t count) override { next_index_ += count; }
     double next_double();
 
     /// Number of coordinates that exist so far.

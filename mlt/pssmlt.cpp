@@ -3,8 +3,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <iostream>
 
+#include "core/path/bidirectional.h"
 #include "core/render/render_path.h"
 #include "core/scene/properties.h"
 
@@ -47,6 +49,72 @@ class PathTracerTarget final : public ChainTarget {
     PathSamplerSettings path_;
 };
 
+/// Kelemen's PSSMLT over BDPT: one state is a whole bidirectional sample (core/path/
+/// bidirectional.h lays its numbers out in fixed blocks, so that mutations keep their
+/// meaning). Its contributions to its own pixel are splatted as they are; light tracing splats
+/// land on other pixels and are divided by the pixel count P, since the image is P times each
+/// slot's integral and a light path estimates every pixel at once (render_bdpt divides them by
+/// the number of light paths, P per sample per pixel). The target is the luminance of the
+/// whole image contribution.
+class BidirectionalTarget final : public ChainTarget {
+  public:
+    BidirectionalTarget(const Scene& scene, const PathSamplerSettings& path) : scene_(scene) {
+        bdpt_.max_depth = path.max_depth;
+        bdpt_.rr_depth = path.rr_depth;
+        bdpt_.hide_emitters = path.hide_emitters;
+        const Film& film = scene.camera().film();
+        pixels_ = static_cast<float>(film.crop_width) * static_cast<float>(film.crop_height);
+    }
+
+    std::size_t slot_count() const override {
+        const Film& film = scene_.camera().film();
+        return static_cast<std::size_t>(film.crop_width) * film.crop_height;
+    }
+
+    void evaluate(SampleStream& stream, ChainState& state, ChainCounters& counters) const override {
+        const Film& film = scene_.camera().film();
+        const FilmSample where = film_sample(film, stream);
+        // Evaluations run concurrently on the chains' threads: one scratch per thread.
+        thread_local BdptScratch scratch;
+        thread_local BdptSample sample;
+        sample_bdpt(scene_, where.film_position, stream, stream, bdpt_, scratch, sample,
+                    counters.paths);
+        if (sample.nonfinite > 0) {
+            state.nonfinite = true;
+            return;
+        }
+        double target = static_cast<double>(luminance(sample.pixel));
+        if (!is_black(sample.pixel))
+            state.splats.push_back({static_cast<std::uint32_t>(where.pixel), sample.pixel});
+        for (const BdptSample::Splat& s : sample.splats) {
+            const int x =
+                std::clamp(static_cast<int>(std::floor(s.film_position.x())) - film.crop_offset_x,
+                           0, film.crop_width - 1);
+            const int y =
+                std::clamp(static_cast<int>(std::floor(s.film_position.y())) - film.crop_offset_y,
+                           0, film.crop_height - 1);
+            const Rgb value = s.value / pixels_;
+            target += static_cast<double>(luminance(value));
+            state.splats.push_back({static_cast<std::uint32_t>(y * film.crop_width + x), value});
+        }
+        if (!std::isfinite(target)) {
+            state.nonfinite = true;
+            state.splats.clear();
+            return;
+        }
+        if (!(target > 0.0)) {
+            state.splats.clear();
+            return;
+        }
+        state.target = target;
+    }
+
+  private:
+    const Scene& scene_;
+    BdptSettings bdpt_;
+    float pixels_ = 1.f;
+};
+
 }  // namespace
 
 PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator) {
@@ -58,6 +126,7 @@ PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator) 
     PropertyReader props(integrator.desc);
     read_chain_settings(integrator, &props, s);
     s.direct_samples = props.get_int32("direct_samples", s.direct_samples);
+    s.bidirectional = props.get_bool("bidirectional", s.bidirectional);
     props.check_all_read();
     validate_pssmlt_settings(s, integrator.desc.loc);
     return s;
@@ -65,6 +134,10 @@ PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator) 
 
 void validate_pssmlt_settings(const PssmltSettings& s, const FileLoc& loc) {
     validate_chain_settings(s, loc);
+    if (s.bidirectional && s.direct_samples > 0)
+        throw InputError(loc,
+                         "direct_samples cannot be used with bidirectional: BDPT renders direct "
+                         "light with its own strategies");
 }
 
 PssmltOutput render_pssmlt(const Scene& scene, const PssmltSettings& settings_in,
@@ -81,7 +154,11 @@ PssmltOutput render_pssmlt(const Scene& scene, const PssmltSettings& settings_in
     // One chain per 16384 mutations, at least 16.
     const ChainRunnerSettings runner =
         runner_settings(settings, width, height, 16384, 16, settings.time_budget_s);
-    const PathTracerTarget target(scene, settings.path);
+    const PathTracerTarget unidirectional(scene, settings.path);
+    const BidirectionalTarget bidirectional(scene, settings.path);
+    const ChainTarget& target = settings.bidirectional
+                                    ? static_cast<const ChainTarget&>(bidirectional)
+                                    : static_cast<const ChainTarget&>(unidirectional);
     ChainRunnerOutput chains = run_chains(target, runner, cancel, progress);
     if (!(chains.stats.b > 0.0))
         std::cerr << "pssmlt: every bootstrap sample was black; the image is black\n";

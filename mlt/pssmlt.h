@@ -24,6 +24,10 @@ struct PssmltSettings : MarkovChainSettings {
     /// tracer with this many samples per pixel, and the chains see only longer paths (Mitsuba's
     /// pssmlt `directSamples`). -1 (default): the chains render everything.
     int direct_samples = -1;
+    /// Kelemen's PSSMLT over BDPT (as Mitsuba 0.6's pssmlt with its bidirectional sampler):
+    /// each state is a camera and a light subpath with every (s, t) strategy, MIS-weighted;
+    /// the target is the luminance of all of them together, light tracing splats included.
+    bool bidirectional = false;
 };
 
 /// The chain runner's statistics (b, acceptance, streaks, ...) plus the separate direct pass.

@@ -113,15 +113,26 @@ bool connectible(const Scene& scene, const BdptVertex& v) {
 
 /// Extends `path` (holding its endpoint vertex) by a random walk from `ray`: Veach 1997,
 /// sec. 10.2, with the forward density of each new vertex and the reverse density of the one
-/// before it. Reads 4 numbers per vertex (lobe, direction, roulette) whether used or not.
-void random_walk(const Scene& scene, Ray ray, Rgb beta, float pdf_direction, TransportMode mode,
-                 SampleStream& stream, int max_vertices, int rr_depth,
-                 std::vector<BdptVertex>& path, PathCounters& counters) {
+/// before it. Reads 4 numbers per vertex (lobe, direction, roulette) whether used or not, and
+/// on camera subpaths 3 more for next-event estimation; returns how many it read.
+std::size_t random_walk(const Scene& scene, Ray ray, Rgb beta, float pdf_direction,
+                        TransportMode mode, SampleStream& stream, int max_vertices, int rr_depth,
+                        std::vector<BdptVertex>& path, PathCounters& counters) {
     float pdf_fwd = pdf_direction;
+    const bool camera = mode == TransportMode::Radiance;
+    const std::size_t per_vertex = camera ? kBdptCameraDimensions : kBdptLightDimensions;
+    std::size_t read = 0;
     while (static_cast<int>(path.size()) < max_vertices) {
         const float u_lobe = stream.next_1d();
         const Vec2f u = stream.next_2d();
         const float u_rr = stream.next_1d();
+        float u_light_select = 0.f;
+        Vec2f u_light = Vec2f::Zero();
+        if (camera) {
+            u_light_select = stream.next_1d();
+            u_light = stream.next_2d();
+        }
+        read += per_vertex;
         const SurfaceInteraction si = scene.intersect(ray);
         ++counters.bounce_rays;
         if (!si.valid()) {
@@ -136,7 +147,7 @@ void random_walk(const Scene& scene, Ray ray, Rgb beta, float pdf_direction, Tra
                 v.pdf_fwd = pdf_fwd;
                 path.push_back(v);
             }
-            return;
+            return read;
         }
         BdptVertex v;
         v.kind = BdptVertex::Kind::Surface;
@@ -147,16 +158,18 @@ void random_walk(const Scene& scene, Ray ray, Rgb beta, float pdf_direction, Tra
         v.beta = beta;
         v.emitter = scene.shapes()[static_cast<std::size_t>(si.shape)].emitter();
         v.pdf_fwd = to_area(pdf_fwd, path.back(), v);
+        v.u_light_select = u_light_select;
+        v.u_light = u_light;
         path.push_back(v);
-        if (static_cast<int>(path.size()) >= max_vertices) return;
+        if (static_cast<int>(path.size()) >= max_vertices) return read;
 
         const Bsdf& bsdf = scene.bsdf_of(si);
         const Vec3f wo_local = si.shading.to_local(v.wo);
         const BsdfSample bs = bsdf.sample(si.uv, wo_local, u_lobe, u, mode);
-        if (!bs.valid()) return;
+        if (!bs.valid()) return read;
         const Vec3f wi = si.shading.to_world(bs.wi);
         const float side = si.n_geometric.dot(wi) * si.n_geometric.dot(v.wo);
-        if (bs.transmission ? side > 0.f : side < 0.f) return;
+        if (bs.transmission ? side > 0.f : side < 0.f) return read;
         float pdf_rev = 0.f;
         if (bs.delta) {
             // A delta lobe has no density: zero marks it (the MIS sums skip such vertices).
@@ -168,17 +181,18 @@ void random_walk(const Scene& scene, Ray ray, Rgb beta, float pdf_direction, Tra
         }
         beta *= bs.weight;
         if (mode == TransportMode::Importance) beta *= adjoint_shading_correction(si, v.wo, wi);
-        if (!(beta.maxCoeff() > 0.f) || !is_finite(beta)) return;
+        if (!(beta.maxCoeff() > 0.f) || !is_finite(beta)) return read;
         // The vertex before, generated from this one by the reverse walk.
         BdptVertex& prev = path[path.size() - 2];
         prev.pdf_rev = to_area(pdf_rev, path.back(), prev);
         if (static_cast<int>(path.size()) >= rr_depth) {
             const float q = std::min(beta.maxCoeff(), 0.95f);
-            if (!(u_rr < q)) return;
+            if (!(u_rr < q)) return read;
             beta /= q;
         }
         ray = spawn_ray(si.p, si.n_geometric, wi);
     }
+    return read;
 }
 
 void camera_subpath(const Scene& scene, const Vec2f& film_position, SampleStream& stream,
@@ -194,8 +208,13 @@ void camera_subpath(const Scene& scene, const Vec2f& film_position, SampleStream
     path.push_back(c);
     ++counters.camera_rays;
     --counters.bounce_rays;  // the walk counts its first ray as a bounce
-    random_walk(scene, ray, Rgb::Ones(), camera.pdf_direction_solid_angle(ray.direction),
-                TransportMode::Radiance, stream, max_vertices, rr_depth, path, counters);
+    const std::size_t read =
+        random_walk(scene, ray, Rgb::Ones(), camera.pdf_direction_solid_angle(ray.direction),
+                    TransportMode::Radiance, stream, max_vertices, rr_depth, path, counters);
+    // The camera's block has a fixed size: the light subpath's numbers keep their coordinates.
+    stream.skip(static_cast<std::size_t>(kBdptCameraDimensions) *
+                    static_cast<std::size_t>(std::max(max_vertices - 1, 0)) -
+                read);
 }
 
 void light_subpath(const Scene& scene, SampleStream& stream, int max_vertices, int rr_depth,
@@ -332,9 +351,6 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
     const int n_camera = static_cast<int>(camera.size());
     const int n_light = static_cast<int>(light.size());
     for (int t = 1; t <= n_camera; ++t) {
-        // Next-event numbers for s = 1 from this camera vertex, read whether used or not.
-        const float u_select = camera_stream.next_1d();
-        const Vec2f u_light = camera_stream.next_2d();
         for (int s = 0; s <= n_light; ++s) {
             const int segments = s + t - 1;
             if (segments < 1 || (bounded && segments > settings.max_depth)) continue;
@@ -389,7 +405,7 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
                 // chooses its origin (same emitter choice, uniform by area).
                 const BdptVertex& pt = camera[static_cast<std::size_t>(t - 1)];
                 if (!pt.is_surface() || !connectible(scene, pt)) continue;
-                const EmitterSample es = scene.sample_emitter(pt.p, u_select, u_light);
+                const EmitterSample es = scene.sample_emitter(pt.p, pt.u_light_select, pt.u_light);
                 if (!es.valid()) continue;
                 const Rgb f = vertex_f(scene, pt, es.wi, TransportMode::Radiance);
                 if (is_black(f)) continue;

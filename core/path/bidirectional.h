@@ -13,9 +13,13 @@
 // they shine from). Light subpaths scatter with the adjoint BSDF (TransportMode::Importance)
 // and Veach's shading-normal correction; camera subpaths with the radiance BSDF.
 //
-// Random numbers: the camera subpath reads `camera_stream` (film position excluded: the
-// caller chooses it), the light subpath `light_stream`; next-event samples (s = 1) are read
-// from `camera_stream` after its walk.
+// Random numbers, in a fixed layout so that a primary sample vector's coordinates keep their
+// meaning (Kelemen et al. 2002, sec. 4): the camera subpath reads `camera_stream` (film
+// position excluded: the caller chooses it), kBdptCameraDimensions per vertex after the pinhole
+// (lobe, direction, roulette, and the next-event sample taken from it), then skips to the end
+// of its block of (max camera vertices - 1) of them; the light subpath reads `light_stream`,
+// kBdptEmissionDimensions for the emitted ray, then kBdptLightDimensions per vertex. The two
+// may be the same stream.
 #include <vector>
 
 #include "core/path/path_sampler.h"
@@ -23,6 +27,10 @@
 #include "core/scene/scene.h"
 
 namespace gdmlt {
+
+inline constexpr int kBdptCameraDimensions = 7;
+inline constexpr int kBdptEmissionDimensions = 5;
+inline constexpr int kBdptLightDimensions = 4;
 
 struct BdptVertex {
     enum class Kind : std::uint8_t { Camera, Light, Surface };
@@ -40,6 +48,9 @@ struct BdptVertex {
     bool at_infinity = false;
     bool delta_light = false;  // Light: point, spot or directional (no strategy can hit it)
     int emitter = -1;          // Light: the emitter; Surface: the shape's emitter or -1
+    /// Camera subpath: the numbers for next-event estimation from this vertex (s = 1).
+    float u_light_select = 0.f;
+    Vec2f u_light = Vec2f::Zero();
 
     bool is_surface() const { return kind == Kind::Surface; }
 };

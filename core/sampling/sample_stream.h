@@ -14,6 +14,10 @@ class SampleStream {
     virtual ~SampleStream() = default;
     /// Next uniform number in [0, 1).
     virtual float next_1d() = 0;
+    /// Moves past `count` coordinates without reading them, so that what follows keeps a fixed
+    /// coordinate whatever was read before (BDPT's light subpath after a camera subpath of any
+    /// length). Nothing to do for independent samples; primary sample vectors jump.
+    virtual void skip(std::size_t count) { static_cast<void>(count); }
     Vec2f next_2d() {
         const float a = next_1d();
         const float b = next_1d();
