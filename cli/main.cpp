@@ -355,8 +355,11 @@ IntegratorResult run_path(const Scene& scene, const RenderOptions& options, Prog
     return r;
 }
 
-IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, ProgressBar& bar) {
+/// PSSMLT, unidirectional or bidirectional, or (`integrator` "mmlt") multiplexed MLT.
+IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, ProgressBar& bar,
+                            const std::string& integrator) {
     mlt::PssmltSettings settings = mlt::pssmlt_settings_from_scene(scene.integrator());
+    settings.multiplexed = integrator == "mmlt";
     apply_mutation_options(options, settings.mutation, settings.chains, settings.bootstrap_samples);
     if (options.mpp) settings.mutations_per_pixel = *options.mpp;
     if (options.direct_samples) settings.direct_samples = *options.direct_samples;
@@ -371,7 +374,7 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
     IntegratorResult r;
     r.seed = settings.seed;
     r.config = {
-        {"integrator", "pssmlt"},
+        {"integrator", integrator},
         {"mutations_per_pixel",
          options.time_s > 0.0 && !options.mpp ? json(nullptr) : json(settings.mutations_per_pixel)},
         {"time_budget_s", settings.time_budget_s},
@@ -523,9 +526,9 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
 /// path 36, pssmlt 42, gdpt 394, gdmlt 316; the feature pass adds 50 and ADAP's graph up to
 /// 282 (gdmlt; 202 with gdpt). Rounded up here by a quarter.
 double peak_bytes_per_pixel(const std::string& integrator, bool features, bool adap) {
-    double bytes = integrator == "gdpt"     ? 493.0
-                   : integrator == "gdmlt"  ? 395.0
-                   : integrator == "pssmlt" ? 53.0
+    double bytes = integrator == "gdpt"                             ? 493.0
+                   : integrator == "gdmlt"                          ? 395.0
+                   : integrator == "pssmlt" || integrator == "mmlt" ? 53.0
                    // The light tracer: the path tracer's image plus two double RGB sums,
                    // counted from its buffers (its splat batches are bounded, ~50 MB).
                    : integrator == "ptracer" ? 93.0
@@ -570,10 +573,11 @@ int run_render(const RenderOptions& options) {
     const std::string integrator =
         options.integrator.empty() ? scene.integrator().type : options.integrator;
     if (integrator != "path" && integrator != "ptracer" && integrator != "bdpt" &&
-        integrator != "pssmlt" && integrator != "gdpt" && integrator != "gdmlt")
+        integrator != "pssmlt" && integrator != "mmlt" && integrator != "gdpt" &&
+        integrator != "gdmlt")
         throw InputError(
             "integrator '" + integrator +
-            "' is not available (available: path, ptracer, bdpt, pssmlt, gdpt, gdmlt)");
+            "' is not available (available: path, ptracer, bdpt, pssmlt, mmlt, gdpt, gdmlt)");
     if (options.max_depth && (*options.max_depth == 0 || *options.max_depth < -1))
         throw InputError("--max-depth must be -1 or at least 1");
     const bool gradient_domain = integrator == "gdpt" || integrator == "gdmlt";
@@ -672,7 +676,8 @@ int run_render(const RenderOptions& options) {
             {"max_links_per_pixel", adap_set->max_links()}};
     }
     ProgressBar bar(isatty(STDERR_FILENO) != 0, options.quiet);
-    IntegratorResult result = integrator == "pssmlt"  ? run_pssmlt(scene, options, bar)
+    IntegratorResult result = integrator == "pssmlt" || integrator == "mmlt"
+                                  ? run_pssmlt(scene, options, bar, integrator)
                               : integrator == "gdpt"  ? run_gdpt(scene, options, setup, bar)
                               : integrator == "gdmlt" ? run_gdmlt(scene, options, setup, bar)
                                                       : run_path(scene, options, bar, integrator);
@@ -716,7 +721,7 @@ int run_render(const RenderOptions& options) {
         {"half_vector_or_replay_through_specular",
          gradient_domain && scene.features().specular_chains_possible},
         {"manifold_solver", gradient_domain && scene.features().specular_chains_possible},
-        {"markov_chains", integrator == "pssmlt" || integrator == "gdmlt"},
+        {"markov_chains", integrator == "pssmlt" || integrator == "mmlt" || integrator == "gdmlt"},
         {"why",
          scene.features().specular_chains_possible
              ? "specular chains are possible: the gdpt and gdmlt auto shift walks them (path "
@@ -791,8 +796,9 @@ int main(int argc, char** argv) {
                            "Output EXR (a PNG preview is written beside it)");
     render_cmd->add_option("-D,--define", render.defines,
                            "Scene parameter name=value (overrides <default>)");
-    render_cmd->add_option("--integrator", render.integrator,
-                           "path | ptracer | bdpt | pssmlt | gdpt | gdmlt (default: the scene's)");
+    render_cmd->add_option(
+        "--integrator", render.integrator,
+        "path | ptracer | bdpt | pssmlt | mmlt | gdpt | gdmlt (default: the scene's)");
     auto* spp_opt =
         render_cmd->add_option("--spp", render.spp, "Samples per pixel (default: the scene's)")
             ->check(CLI::PositiveNumber);

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <limits>
 
 #include "core/path/bidirectional.h"
 #include "core/render/render_path.h"
@@ -56,11 +57,18 @@ class PathTracerTarget final : public ChainTarget {
 /// slot's integral and a light path estimates every pixel at once (render_bdpt divides them by
 /// the number of light paths, P per sample per pixel). The target is the luminance of the
 /// whole image contribution.
+///
+/// Multiplexed (MMLT, Hachisuka et al. 2014): two more numbers choose a path length k in
+/// [1, max_depth] and a strategy s in [0, k] (t = k + 1 - s) uniformly; the state is that one
+/// strategy, MIS-weighted against the others of its length and divided by the probability of
+/// the choice, with subpaths of exactly s and t vertices and no Russian roulette (which would
+/// only end subpaths before the chosen strategy could connect).
 class BidirectionalTarget final : public ChainTarget {
   public:
-    BidirectionalTarget(const Scene& scene, const PathSamplerSettings& path) : scene_(scene) {
+    BidirectionalTarget(const Scene& scene, const PathSamplerSettings& path, bool multiplexed)
+        : scene_(scene), multiplexed_(multiplexed) {
         bdpt_.max_depth = path.max_depth;
-        bdpt_.rr_depth = path.rr_depth;
+        bdpt_.rr_depth = multiplexed ? std::numeric_limits<int>::max() : path.rr_depth;
         bdpt_.hide_emitters = path.hide_emitters;
         const Film& film = scene.camera().film();
         pixels_ = static_cast<float>(film.crop_width) * static_cast<float>(film.crop_height);
@@ -77,8 +85,23 @@ class BidirectionalTarget final : public ChainTarget {
         // Evaluations run concurrently on the chains' threads: one scratch per thread.
         thread_local BdptScratch scratch;
         thread_local BdptSample sample;
-        sample_bdpt(scene_, where.film_position, stream, stream, bdpt_, scratch, sample,
+        BdptSettings bdpt = bdpt_;
+        float inverse_choice = 1.f;
+        if (multiplexed_) {
+            const float u_length = stream.next_1d();
+            const float u_strategy = stream.next_1d();
+            const int lengths = bdpt_.max_depth;
+            const int k =
+                1 + std::min(static_cast<int>(u_length * static_cast<float>(lengths)), lengths - 1);
+            const int s = std::min(static_cast<int>(u_strategy * static_cast<float>(k + 1)), k);
+            bdpt.only_s = s;
+            bdpt.only_t = k + 1 - s;
+            bdpt.weight_only = true;
+            inverse_choice = static_cast<float>(lengths) * static_cast<float>(k + 1);
+        }
+        sample_bdpt(scene_, where.film_position, stream, stream, bdpt, scratch, sample,
                     counters.paths);
+        sample.pixel *= inverse_choice;
         if (sample.nonfinite > 0) {
             state.nonfinite = true;
             return;
@@ -93,7 +116,7 @@ class BidirectionalTarget final : public ChainTarget {
             const int y =
                 std::clamp(static_cast<int>(std::floor(s.film_position.y())) - film.crop_offset_y,
                            0, film.crop_height - 1);
-            const Rgb value = s.value / pixels_;
+            const Rgb value = s.value * (inverse_choice / pixels_);
             target += static_cast<double>(luminance(value));
             state.splats.push_back({static_cast<std::uint32_t>(y * film.crop_width + x), value});
         }
@@ -111,6 +134,7 @@ class BidirectionalTarget final : public ChainTarget {
 
   private:
     const Scene& scene_;
+    bool multiplexed_ = false;
     BdptSettings bdpt_;
     float pixels_ = 1.f;
 };
@@ -119,7 +143,8 @@ class BidirectionalTarget final : public ChainTarget {
 
 PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator) {
     PssmltSettings s;
-    if (integrator.desc.type != "pssmlt") {
+    s.multiplexed = integrator.desc.type == "mmlt";
+    if (integrator.desc.type != "pssmlt" && integrator.desc.type != "mmlt") {
         read_chain_settings(integrator, nullptr, s);
         return s;
     }
@@ -134,7 +159,11 @@ PssmltSettings pssmlt_settings_from_scene(const IntegratorSettings& integrator) 
 
 void validate_pssmlt_settings(const PssmltSettings& s, const FileLoc& loc) {
     validate_chain_settings(s, loc);
-    if (s.bidirectional && s.direct_samples > 0)
+    if (s.multiplexed && s.path.max_depth < 1)
+        throw InputError(loc,
+                         "mmlt needs a max_depth of at least 1 (it chooses a path length "
+                         "uniformly up to it)");
+    if ((s.bidirectional || s.multiplexed) && s.direct_samples > 0)
         throw InputError(loc,
                          "direct_samples cannot be used with bidirectional: BDPT renders direct "
                          "light with its own strategies");
@@ -155,8 +184,8 @@ PssmltOutput render_pssmlt(const Scene& scene, const PssmltSettings& settings_in
     const ChainRunnerSettings runner =
         runner_settings(settings, width, height, 16384, 16, settings.time_budget_s);
     const PathTracerTarget unidirectional(scene, settings.path);
-    const BidirectionalTarget bidirectional(scene, settings.path);
-    const ChainTarget& target = settings.bidirectional
+    const BidirectionalTarget bidirectional(scene, settings.path, settings.multiplexed);
+    const ChainTarget& target = settings.bidirectional || settings.multiplexed
                                     ? static_cast<const ChainTarget&>(bidirectional)
                                     : static_cast<const ChainTarget&>(unidirectional);
     ChainRunnerOutput chains = run_chains(target, runner, cancel, progress);

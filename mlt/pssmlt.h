@@ -28,6 +28,12 @@ struct PssmltSettings : MarkovChainSettings {
     /// each state is a camera and a light subpath with every (s, t) strategy, MIS-weighted;
     /// the target is the luminance of all of them together, light tracing splats included.
     bool bidirectional = false;
+    /// Multiplexed MLT (Hachisuka et al. 2014; `--integrator mmlt`): each state is one BDPT
+    /// strategy, its path length and (s, t) chosen by two more primary samples, MIS-weighted,
+    /// so the chains spend their time on the strategies that carry the light. Needs a
+    /// max_depth. Here the choice of length is a coordinate like any other (the paper's
+    /// formulation), not a chain per length as pbrt-v4 runs it.
+    bool multiplexed = false;
 };
 
 /// The chain runner's statistics (b, acceptance, streaks, ...) plus the separate direct pass.

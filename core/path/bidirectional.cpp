@@ -195,9 +195,11 @@ std::size_t random_walk(const Scene& scene, Ray ray, Rgb beta, float pdf_directi
     return read;
 }
 
+/// `block_vertices`: the largest camera subpath of the settings, which sizes the stream block
+/// (a single-strategy sample stops at `max_vertices` but keeps the layout).
 void camera_subpath(const Scene& scene, const Vec2f& film_position, SampleStream& stream,
-                    int max_vertices, int rr_depth, std::vector<BdptVertex>& path,
-                    PathCounters& counters) {
+                    int max_vertices, int block_vertices, int rr_depth,
+                    std::vector<BdptVertex>& path, PathCounters& counters) {
     path.clear();
     const PerspectiveCamera& camera = scene.camera();
     const Ray ray = camera.generate_ray(film_position);
@@ -213,7 +215,7 @@ void camera_subpath(const Scene& scene, const Vec2f& film_position, SampleStream
                     TransportMode::Radiance, stream, max_vertices, rr_depth, path, counters);
     // The camera's block has a fixed size: the light subpath's numbers keep their coordinates.
     stream.skip(static_cast<std::size_t>(kBdptCameraDimensions) *
-                    static_cast<std::size_t>(std::max(max_vertices - 1, 0)) -
+                    static_cast<std::size_t>(std::max(block_vertices - 1, 0)) -
                 read);
 }
 
@@ -337,10 +339,13 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
     out.nonfinite = 0;
     const bool bounded = settings.max_depth >= 0;
     // A path of s + t vertices has s + t - 1 segments (Mitsuba's depth).
-    const int max_camera = bounded ? settings.max_depth + 1 : kUnboundedVertices;
-    const int max_light = bounded ? settings.max_depth : kUnboundedVertices;
-    camera_subpath(scene, film_position, camera_stream, max_camera, settings.rr_depth + 1,
-                   scratch.camera, counters);
+    const int camera_block = bounded ? settings.max_depth + 1 : kUnboundedVertices;
+    const bool only = settings.only_s >= 0;
+    const int max_camera = only ? std::min(camera_block, settings.only_t) : camera_block;
+    const int max_light = std::min(bounded ? settings.max_depth : kUnboundedVertices,
+                                   only ? settings.only_s : kUnboundedVertices);
+    camera_subpath(scene, film_position, camera_stream, max_camera, camera_block,
+                   settings.rr_depth + 1, scratch.camera, counters);
     light_subpath(scene, light_stream, max_light, settings.rr_depth, scratch.light, counters);
     ++counters.paths;
     const std::vector<BdptVertex>& camera = scratch.camera;
@@ -355,7 +360,6 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
             const int segments = s + t - 1;
             if (segments < 1 || (bounded && segments > settings.max_depth)) continue;
             if (s == 0 && t == 1) continue;
-            const bool only = settings.only_s >= 0;
             if (only && (s != settings.only_s || t != settings.only_t)) continue;
             // Emitters seen directly: strategies (0, 2) and (1, 1).
             if (settings.hide_emitters && segments == 1) continue;
@@ -448,10 +452,11 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
             }
             if (is_black(contribution)) continue;
             const float weight =
-                only ? 1.f
-                     : mis_weight(scene, light, camera, use_sampled && t > 1 ? &sampled : nullptr,
-                                  use_sampled && t == 1 ? &sampled : nullptr, s, t,
-                                  settings.power_heuristic, light_mis, camera_mis);
+                only && !settings.weight_only
+                    ? 1.f
+                    : mis_weight(scene, light, camera, use_sampled && t > 1 ? &sampled : nullptr,
+                                 use_sampled && t == 1 ? &sampled : nullptr, s, t,
+                                 settings.power_heuristic, light_mis, camera_mis);
             const Rgb value = contribution * weight;
             if (!is_finite(value)) {
                 ++out.nonfinite;

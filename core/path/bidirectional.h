@@ -61,9 +61,12 @@ struct BdptSettings {
     bool hide_emitters = false;
     /// Power heuristic (exponent 2, Veach 1997 eq. 9.13) or balance heuristic.
     bool power_heuristic = true;
-    /// Tests: evaluate only strategy (only_s, only_t), unweighted (MIS off), when >= 0.
+    /// Evaluate only strategy (only_s, only_t) when >= 0, with subpaths of just those lengths:
+    /// unweighted (MIS off, for tests) or, with `weight_only`, MIS-weighted against all the
+    /// strategies of its path length (multiplexed MLT, Hachisuka et al. 2014).
     int only_s = -1;
     int only_t = -1;
+    bool weight_only = false;
 };
 
 /// What one bidirectional sample contributes: to the camera sample's own pixel (all t >= 2

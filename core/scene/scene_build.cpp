@@ -433,13 +433,14 @@ struct Builder {
     }
 
     void build_integrator(const ObjectDesc& obj) {
-        static const std::set<std::string> known = {"path", "ptracer", "pssmlt", "gdpt", "gdmlt"};
+        static const std::set<std::string> known = {"path", "ptracer", "bdpt", "pssmlt",
+                                                    "mmlt", "gdpt",    "gdmlt"};
         integrator.desc = obj;
         integrator.type = obj.type;
         if (!known.count(obj.type)) {
-            diagnostics.unknown(obj.loc,
-                                "unknown integrator '" + obj.type +
-                                    "' (supported: path, ptracer, bdpt, pssmlt, gdpt, gdmlt)");
+            diagnostics.unknown(
+                obj.loc, "unknown integrator '" + obj.type +
+                             "' (supported: path, ptracer, bdpt, pssmlt, mmlt, gdpt, gdmlt)");
             integrator.type = "path";
         }
         Properties props(obj, diagnostics);
