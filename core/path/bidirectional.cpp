@@ -57,7 +57,8 @@ float light_origin_pdf(const Scene& scene, const BdptVertex& v) {
     return pmf;  // point, spot, directional
 }
 
-/// Density of `next` generated from light vertex `v` (an emitted ray): the emission's direction
+/// Density of `next` generated from light vertex `v` (or from a camera subpath's vertex on an
+/// emitter, for s = 0) by an emitted ray: the emission's direction
 /// density in area measure; for lights at infinity the disk's area density projected onto
 /// `next` (parallel rays: no 1 / d^2).
 float light_next_pdf(const Scene& scene, const BdptVertex& v, const BdptVertex& next) {
@@ -249,11 +250,6 @@ void light_subpath(const Scene& scene, SampleStream& stream, int max_vertices, i
     if (e.at_infinity && path.size() > 1) path[1].pdf_fwd = light_next_pdf(scene, l, path[1]);
 }
 
-struct MisEntry {
-    float pdf_fwd = 0.f, pdf_rev = 0.f;
-    bool delta = false;
-};
-
 /// The MIS weight of strategy (s, t) for the path it made (Veach 1997, sec. 10.3.4): the
 /// densities of all other strategies relative to this one, as products of reverse over forward
 /// densities walking the connection along the path. `sampled_light` replaces light vertex 0
@@ -262,7 +258,7 @@ struct MisEntry {
 float mis_weight(const Scene& scene, const std::vector<BdptVertex>& light,
                  const std::vector<BdptVertex>& camera, const BdptVertex* sampled_light,
                  const BdptVertex* sampled_camera, int s, int t, bool power,
-                 std::vector<MisEntry>& light_mis, std::vector<MisEntry>& camera_mis) {
+                 std::vector<BdptMisEntry>& light_mis, std::vector<BdptMisEntry>& camera_mis) {
     const auto light_at = [&](int i) {
         return (sampled_light && i == 0) ? sampled_light : &light[static_cast<std::size_t>(i)];
     };
@@ -286,20 +282,16 @@ float mis_weight(const Scene& scene, const std::vector<BdptVertex>& light,
     }
     // The connection's ends are connected, not scattered: not delta; and their reverse
     // densities are those of the other subpath continuing through them.
-    MisEntry& pt_e = camera_mis[static_cast<std::size_t>(t - 1)];
+    BdptMisEntry& pt_e = camera_mis[static_cast<std::size_t>(t - 1)];
     pt_e.delta = false;
     pt_e.pdf_rev = s > 0 ? vertex_pdf(scene, *qs, qs_minus, *pt) : light_origin_pdf(scene, *pt);
     if (pt_minus) {
         // With s = 0, pt is the light origin the reverse walk would have started from.
         camera_mis[static_cast<std::size_t>(t - 2)].pdf_rev =
-            s > 0 ? vertex_pdf(scene, *pt, qs, *pt_minus) : [&] {
-                BdptVertex as_light = *pt;
-                as_light.kind = BdptVertex::Kind::Light;
-                return light_next_pdf(scene, as_light, *pt_minus);
-            }();
+            s > 0 ? vertex_pdf(scene, *pt, qs, *pt_minus) : light_next_pdf(scene, *pt, *pt_minus);
     }
     if (qs) {
-        MisEntry& qs_e = light_mis[static_cast<std::size_t>(s - 1)];
+        BdptMisEntry& qs_e = light_mis[static_cast<std::size_t>(s - 1)];
         qs_e.delta = false;
         qs_e.pdf_rev = vertex_pdf(scene, *pt, pt_minus, *qs);
     }
@@ -312,7 +304,7 @@ float mis_weight(const Scene& scene, const std::vector<BdptVertex>& light,
     // Moving the connection towards the camera: strategies (s + k, t - k). The pinhole
     // (camera vertex 0) cannot be hit.
     for (int i = t - 1; i > 0; --i) {
-        const MisEntry& e = camera_mis[static_cast<std::size_t>(i)];
+        const BdptMisEntry& e = camera_mis[static_cast<std::size_t>(i)];
         ratio *= static_cast<double>(remap(e.pdf_rev)) / remap(e.pdf_fwd);
         if (!e.delta && !camera_mis[static_cast<std::size_t>(i - 1)].delta) sum += h(ratio);
     }
@@ -320,7 +312,7 @@ float mis_weight(const Scene& scene, const std::vector<BdptVertex>& light,
     // direction cannot be hit (k = s).
     ratio = 1.0;
     for (int i = s - 1; i >= 0; --i) {
-        const MisEntry& e = light_mis[static_cast<std::size_t>(i)];
+        const BdptMisEntry& e = light_mis[static_cast<std::size_t>(i)];
         ratio *= static_cast<double>(remap(e.pdf_rev)) / remap(e.pdf_fwd);
         const bool delta_before =
             i > 0 ? light_mis[static_cast<std::size_t>(i - 1)].delta : light_at(0)->delta_light;
@@ -351,7 +343,8 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
     const std::vector<BdptVertex>& camera = scratch.camera;
     const std::vector<BdptVertex>& light = scratch.light;
     const PerspectiveCamera& cam = scene.camera();
-    std::vector<MisEntry> light_mis, camera_mis;
+    std::vector<BdptMisEntry>& light_mis = scratch.light_mis;
+    std::vector<BdptMisEntry>& camera_mis = scratch.camera_mis;
 
     const int n_camera = static_cast<int>(camera.size());
     const int n_light = static_cast<int>(light.size());

@@ -84,10 +84,19 @@ struct BdptSample {
     int nonfinite = 0;
 };
 
-/// Reused storage of the two subpaths.
+/// One vertex's densities as the MIS weight sees them for one strategy.
+struct BdptMisEntry {
+    float pdf_fwd = 0.f, pdf_rev = 0.f;
+    bool delta = false;
+};
+
+/// Reused storage of the two subpaths and of the MIS weights' copies of their densities (no
+/// allocation per sample).
 struct BdptScratch {
     std::vector<BdptVertex> camera;
     std::vector<BdptVertex> light;
+    std::vector<BdptMisEntry> camera_mis;
+    std::vector<BdptMisEntry> light_mis;
 };
 
 /// Veach's correction for shading normals in adjoint transport (Veach 1997, eq. 5.19; pbrt-v4
