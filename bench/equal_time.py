@@ -145,9 +145,13 @@ def raw_layers(exr):
     return image
 
 
+# Integrators whose rate is mutations (chain proposals) per second of chains.
+CHAIN_INTEGRATORS = ("pssmlt", "mmlt", "gdmlt")
+
+
 def cost_rate(integrator, stats):
     """(samples or proposals per second, unit) from a gdmlt stats JSON, or (None, unit)."""
-    if integrator in ("pssmlt", "gdmlt"):
+    if integrator in CHAIN_INTEGRATORS:
         if stats.get("mutations") and stats.get("chains_s"):
             return stats["mutations"] / stats["chains_s"], "proposal"
         return None, "proposal"  # no mutation ran (see run_warnings)
@@ -157,7 +161,7 @@ def cost_rate(integrator, stats):
 def run_warnings(integrator, stats, seconds):
     """What makes a gdmlt run not a fair point of an equal-time curve."""
     warnings = []
-    if integrator in ("pssmlt", "gdmlt") and not stats.get("mutations"):
+    if integrator in CHAIN_INTEGRATORS and not stats.get("mutations"):
         warnings.append(f"0 mutations (bootstrap {stats.get('bootstrap_s', 0):.2f} s used the budget)")
     if stats.get("partial"):
         warnings.append("partial render")
@@ -371,7 +375,7 @@ def markdown(args, rows, costs, mitsuba_info):
                      f"{c['unit']} | {fmt(c['cost_vs_path_sample'], '.2f')} |")
     lines.append("")
     lines.append("cost / path sample = path samples/s / rate (medians over all budgets and repeats of the "
-                 "scene); pssmlt/gdmlt rate = mutations / chains_s." if any(c["integrator"] == "path" for c in costs)
+                 "scene); pssmlt/mmlt/gdmlt rate = mutations / chains_s." if any(c["integrator"] == "path" for c in costs)
                  else "no `path` runs: no cost ratios.")
     return "\n".join(lines)
 
