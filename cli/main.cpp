@@ -706,10 +706,15 @@ int run_render(const RenderOptions& options) {
     const std::string& output = paths.exr;
     std::vector<ExrLayer> layers = {ExrLayer{"", {"R", "G", "B"}, result.image}};
     layers.insert(layers.end(), result.extra_layers.begin(), result.extra_layers.end());
-    write_exr(output, layers, attributes);
     const std::string& png = paths.png;
-    write_png_srgb(png, result.image);
-    if (!options.stats_path.empty()) write_text_file(options.stats_path, stats.dump(2) + "\n");
+    // All or nothing: a failed write (a full disk) replaces none of the files. Written in the
+    // order of their usual sizes, which lets the CLI test fail each one alone under a file-size
+    // limit.
+    OutputFiles files;
+    files.add_png_srgb(png, result.image);
+    files.add_exr(output, layers, attributes);
+    if (!options.stats_path.empty()) files.add_text(options.stats_path, stats.dump(2) + "\n");
+    files.commit();
 
     for (const int signal : kStopSignals) std::signal(signal, SIG_DFL);
 

@@ -128,8 +128,10 @@ int run_reconstruct(ReconstructOptions o) {
     attributes["gdmlt.reconstruct.relative_residual"] = std::to_string(s.final_relative_residual);
     attributes["gdmlt.reconstruct.dropped_edges"] =
         std::to_string(s.dropped_nonfinite_edges + s.dropped_negative_weight_edges);
-    write_exr(output, {{"", {"R", "G", "B"}, result.image}}, attributes);
-    write_png_srgb(png, result.image, o.exposure);
+    OutputFiles files;  // all or nothing, as a render's
+    files.add_png_srgb(png, result.image, o.exposure);
+    files.add_exr(output, {{"", {"R", "G", "B"}, result.image}}, attributes);
+    files.commit();
 
     if (!o.quiet) {
         std::fprintf(

@@ -54,6 +54,37 @@ std::vector<ExrLayer> read_exr(const std::string& path, ExrAttributes* attribute
 /// Same temporary-file-and-rename rule.
 void write_png_srgb(const std::string& path, const Image& rgb, float exposure_stops = 0.f);
 
+/// Files that replace their paths together or not at all: each is written to a temporary file
+/// beside its path, and only when every one has been written does commit() rename them over
+/// their paths (a new EXR beside the previous render's statistics would mislead whoever reads
+/// them together). Every write is a checked system call: libpng and OpenEXR's destructor do not
+/// report all failures, and a full disk once left an empty EXR behind. A failure throws
+/// OutputError naming the file and the system's reason ("File too large", "No space left on
+/// device"); the destructor removes every temporary not yet renamed.
+class OutputFiles {
+  public:
+    OutputFiles() = default;
+    ~OutputFiles();
+    OutputFiles(const OutputFiles&) = delete;
+    OutputFiles& operator=(const OutputFiles&) = delete;
+
+    /// Multi-layer float32 EXR (see write_exr).
+    void add_exr(const std::string& path, const std::vector<ExrLayer>& layers,
+                 const ExrAttributes& attributes = {});
+    /// 8-bit sRGB PNG preview (see write_png_srgb).
+    void add_png_srgb(const std::string& path, const Image& rgb, float exposure_stops = 0.f);
+    void add_text(const std::string& path, const std::string& text);
+    /// Renames every file over its path, in the order added. Throws OutputError (a rename fails
+    /// only in a directory that changed under us; files renamed before it stay).
+    void commit();
+
+  private:
+    struct Staged {
+        std::string path, temporary;
+    };
+    std::vector<Staged> staged_;
+};
+
 /// Reads any image OpenImageIO understands (EXR, HDR, PNG, JPEG...) as float RGB(A) with the
 /// file's channel count; 8-bit sRGB files are returned as stored (no linearisation here).
 Image read_image(const std::string& path);

@@ -8,8 +8,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -205,6 +207,43 @@ TEST_F(Cli, OutputsThatMustNotBeWrittenAreRefusedBeforeRendering) {
     const auto raw_size = fs::file_size(dir_ / "raw.exr");
     EXPECT_NE(run_gdmlt(dir_, "reconstruct raw.exr -q -o raw.exr").exit_code, 0);
     EXPECT_EQ(fs::file_size(dir_ / "raw.exr"), raw_size);
+}
+
+TEST_F(Cli, AFullDiskFailsEachOutputWithItsReasonAndLeavesNoFile) {
+    // A file-size limit stands in for a full disk: with SIGXFSZ ignored, a write past it fails
+    // with EFBIG ("File too large") as one on a full disk fails with ENOSPC. A full disk used to
+    // leave an empty EXR and a truncated PNG (exit code 0) and --stats failures a .tmp file.
+    // A camera filled by one light renders a uniform image, so that the PNG, the EXR and the
+    // statistics are of increasing size and a limit between two sizes fails exactly one write.
+    write("light.xml", R"(<scene version="3.0.0">
+  <sensor type="perspective"><transform name="to_world"><lookat origin="0, 0, 3.9" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/><rfilter type="box"/></film>
+  </sensor>
+  <shape type="rectangle"><emitter type="area"/></shape>
+</scene>)");
+    const std::string render = "render light.xml --spp 1 -t 1 -q -o out.exr --stats s.json";
+    ASSERT_EQ(run_gdmlt(dir_, render).exit_code, 0);
+    const auto png = fs::file_size(dir_ / "out.png"), exr = fs::file_size(dir_ / "out.exr"),
+               stats = fs::file_size(dir_ / "s.json");
+    // `ulimit -f` counts 512-byte blocks in sh (dash, and bash in POSIX mode).
+    const auto blocks = [](std::uintmax_t bytes) { return (bytes + 511) / 512; };
+    ASSERT_LT(blocks(png) * 512, exr) << "the PNG and the EXR are no longer separable by size";
+    ASSERT_LT(blocks(exr) * 512, stats) << "the EXR and the stats are no longer separable";
+    const std::vector<std::pair<std::string, std::uintmax_t>> cases = {
+        {"out.png", 0}, {"out.exr", blocks(png)}, {"s.json", blocks(exr)}};
+    for (const auto& [file, limit] : cases) {
+        for (const std::string& name : outputs()) fs::remove(dir_ / name);
+        const Outcome run =
+            run_gdmlt(dir_, render, "trap '' XFSZ; ulimit -f " + std::to_string(limit) + "; exec ");
+        EXPECT_NE(run.exit_code, 0) << file << ": " << run.output;
+        EXPECT_NE(run.output.find("cannot write '" + file + "': " + std::strerror(EFBIG)),
+                  std::string::npos)
+            << file << ": " << run.output;
+        // Nothing written (all or nothing), no temporary file left.
+        std::string left;
+        for (const std::string& name : outputs()) left += name + " ";
+        EXPECT_EQ(left, "") << file;
+    }
 }
 
 TEST_F(Cli, ABadSceneNamesFileAndLineAndWritesNothing) {
