@@ -202,6 +202,32 @@ TEST(Gdmlt, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
     EXPECT_GT(test::mean_luminance(one.buffers.primal), 0.0);
 }
 
+TEST(Gdmlt, ABlackSceneEndsAfterTheBootstrapWithZeroLayersAndSaysSo) {
+    // A light that faces away from everything: f* = 0 everywhere (no primal, no difference),
+    // so no chain can start. The render must end after the bootstrap with finite zero layers
+    // (very direct light included: the camera sees the light's back) and say why.
+    const Scene scene = test::scene_from_xml(test::sensor_xml(8, 40.f, "0, 0, 4") + R"(
+        <shape type="rectangle"><transform name="to_world"><translate z="-1"/></transform></shape>
+        <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="180"/><translate z="-2"/></transform>
+            <emitter type="area"><rgb name="radiance" value="5"/></emitter></shape>)");
+    mlt::GdmltSettings s = small_gdmlt(3, 16);
+    s.bootstrap_samples = 1000;
+    s.very_direct_samples = 4;
+    ::testing::internal::CaptureStderr();
+    const mlt::GdmltOutput out = mlt::render_gdmlt(scene, s);
+    const std::string said = ::testing::internal::GetCapturedStderr();
+    EXPECT_NE(said.find("every bootstrap sample had a zero target"), std::string::npos) << said;
+    EXPECT_GE(out.stats.bootstrap_samples, 1000u);
+    EXPECT_EQ(out.stats.bootstrap_nonzero, 0u);
+    EXPECT_EQ(out.stats.b, 0.0);
+    EXPECT_EQ(out.stats.mutations, 0u);
+    for (const Image* layer :
+         {&out.buffers.primal, &out.buffers.dx, &out.buffers.dy, &out.buffers.very_direct}) {
+        ASSERT_FALSE(layer->pixels.empty());
+        for (float v : layer->pixels) EXPECT_EQ(v, 0.f);  // also false for NaN
+    }
+}
+
 TEST(Gdmlt, EveryShiftFailsAndTheImageIsStillFiniteAndRight) {
     // A diffuse sphere smaller than one pixel's footprint under a point light, nothing else:
     // every base path with light hits the sphere, and every shift to a neighbour pixel misses
@@ -221,6 +247,10 @@ TEST(Gdmlt, EveryShiftFailsAndTheImageIsStillFiniteAndRight) {
     s.bootstrap_samples = 200000;
     s.bootstrap_relative_error = 0.02;
     const mlt::GdmltOutput out = mlt::render_gdmlt(scene, s);
+    // The chains really ran through a mostly black primary sample space.
+    EXPECT_EQ(out.stats.mutations, 256u * 8u * 8u);
+    EXPECT_LT(out.stats.bootstrap_nonzero, out.stats.bootstrap_samples / 20);
+    EXPECT_EQ(out.stats.nonfinite_dropped, 0u);
     for (const Image* layer : {&out.buffers.primal, &out.buffers.dx, &out.buffers.dy})
         for (float v : layer->pixels) ASSERT_TRUE(std::isfinite(v));
     const manifold::ShiftCounters& shifts = out.stats.shifts;

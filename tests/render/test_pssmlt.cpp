@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// PSSMLT converges to the path tracer's image; zero-contribution states never produce NaN.
+// PSSMLT converges to the path tracer's image; chains run through zero-contribution states
+// without NaN, and a black scene ends after the bootstrap, saying so.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -46,9 +47,11 @@ TEST(Pssmlt, ConvergesToThePathTracersImageOnASmallCornellBox) {
     RecordProperty("relMSE", std::to_string(rel_mse));
 }
 
-TEST(Pssmlt, ZeroContributionStatesNeverProduceNan) {
-    // A light that faces away from everything: almost every path has zero contribution, and
-    // the rest only see the light's back (black). The image must be black and finite.
+TEST(Pssmlt, ABlackSceneEndsAfterTheBootstrapWithAZeroImageAndSaysSo) {
+    // A light that faces away from everything: every path has zero contribution (those that
+    // reach the light see its black back). No chain can start (there is no state with f > 0 to
+    // start from): the render must end after the bootstrap with a finite black image, and say
+    // why rather than leave a black image unexplained.
     const Scene scene = test::scene_from_xml(test::sensor_xml(8, 40.f, "0, 0, 4") + R"(
         <shape type="rectangle"><transform name="to_world"><translate z="-1"/></transform></shape>
         <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="180"/><translate z="-2"/></transform>
@@ -56,17 +59,24 @@ TEST(Pssmlt, ZeroContributionStatesNeverProduceNan) {
     mlt::PssmltSettings settings;
     settings.mutations_per_pixel = 16;
     settings.bootstrap_samples = 1000;
+    ::testing::internal::CaptureStderr();
     const mlt::PssmltOutput out = mlt::render_pssmlt(scene, settings);
-    for (float v : out.image.pixels) {
-        EXPECT_TRUE(std::isfinite(v));
-        EXPECT_EQ(v, 0.f);
-    }
+    const std::string said = ::testing::internal::GetCapturedStderr();
+    EXPECT_NE(said.find("every bootstrap sample was black"), std::string::npos) << said;
+    EXPECT_GE(out.stats.bootstrap_samples, 1000u);
+    EXPECT_EQ(out.stats.bootstrap_nonzero, 0u);
     EXPECT_EQ(out.stats.b, 0.0);
+    EXPECT_EQ(out.stats.mutations, 0u);
+    EXPECT_EQ(out.stats.nonfinite_dropped, 0u);
+    ASSERT_EQ(out.image.pixels.size(), 8u * 8u * 3u);
+    for (float v : out.image.pixels) EXPECT_EQ(v, 0.f);  // also false for NaN
 }
 
-TEST(Pssmlt, SparseContributionsStayFinite) {
-    // Only a small bright light seen directly, over black surroundings: most proposals have
-    // zero contribution and get rejected against a bright state (a = 0); nothing may be NaN.
+TEST(Pssmlt, ChainsRunThroughMostlyZeroContributionStatesAndStayFinite) {
+    // Only a small bright light seen directly, over black surroundings: about 1 state in 1000
+    // has light, so nearly every proposal has zero contribution and is rejected against a
+    // bright state (a = 0, Kelemen weight of a zero-target proposal). The chains must really
+    // run their whole budget through such states, and nothing may be NaN.
     const Scene scene = test::scene_from_xml(test::sensor_xml(8, 40.f, "0, 0, 4") + R"(
         <shape type="disk"><transform name="to_world"><scale value="0.05"/></transform>
             <emitter type="area"><rgb name="radiance" value="100"/></emitter></shape>)");
@@ -74,13 +84,20 @@ TEST(Pssmlt, SparseContributionsStayFinite) {
     settings.mutations_per_pixel = 64;
     settings.bootstrap_samples = 20000;
     const mlt::PssmltOutput out = mlt::render_pssmlt(scene, settings);
+    const mlt::PssmltStats& s = out.stats;
+    EXPECT_EQ(s.mutations, 64u * 8u * 8u);
+    EXPECT_GT(s.bootstrap_nonzero, 0u);
+    EXPECT_LT(s.bootstrap_nonzero, s.bootstrap_samples / 10) << "most states must be black";
+    EXPECT_GT(s.small_proposed + s.large_proposed - s.small_accepted - s.large_accepted,
+              s.mutations / 2)
+        << "most proposals (zero contribution) must be rejected";
+    EXPECT_EQ(s.nonfinite_dropped, 0u);
     double sum = 0.0;
     for (float v : out.image.pixels) {
         ASSERT_TRUE(std::isfinite(v));
         sum += v;
     }
     EXPECT_GT(sum, 0.0);
-    EXPECT_EQ(out.stats.nonfinite_dropped, 0u);
 }
 
 TEST(Pssmlt, SameSeedGivesTheSameImageAtOneAndTwoThreads) {
