@@ -290,6 +290,8 @@ json chain_stats_json(const mlt::ChainStats& s) {
           {"bootstrap_samples", s.bootstrap_samples},
           {"bootstrap_nonzero", s.bootstrap_nonzero}}},
         {"replay_mismatches", s.replay_mismatches},
+        // Stopped before any chain ran: the image is the bootstrap samples' mean.
+        {"bootstrap_estimate", s.bootstrap_estimate},
         {"nonfinite_samples_dropped", s.nonfinite_dropped}};
 }
 

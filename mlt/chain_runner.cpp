@@ -109,20 +109,31 @@ MeanEstimate mean_of(const std::vector<double>& values) {
     return m;
 }
 
+/// The independent samples' contributions, summed per slot: each sample is uniform over primary
+/// sample space, so sums / count estimate every slot's integral without a chain.
+struct SplatSums {
+    std::vector<RgbD> sums;
+    std::vector<std::vector<Splat>> batch;  // per sample of the current batch, merged in order
+};
+
 /// Targets of independent samples [first, first + count) of stream family `family`, appended
-/// to `values` in index order; non-finite ones count as 0 and are counted. Evaluated in
-/// batches, between which `stop` is asked: a huge bootstrap must not outlast Ctrl-C or the
-/// time budget. Returns how many were appended (fewer than `count` only when stopped).
+/// to `values` in index order; non-finite ones count as 0 and are counted. With `splats`, their
+/// splats are added to splats->sums in index order (deterministic at any thread count).
+/// Evaluated in batches, between which `stop` is asked (a huge bootstrap must not outlast
+/// Ctrl-C or the time budget) and after each of which `after_batch` is called. Returns how many
+/// were appended (fewer than `count` only when stopped).
 std::size_t append_independent_targets(const ChainTarget& target,
                                        const ChainRunnerSettings& settings, std::uint64_t family,
                                        std::size_t first, std::size_t count,
                                        std::vector<double>& values,
                                        tbb::enumerable_thread_specific<ChainCounters>& counters,
-                                       std::uint64_t& nonfinite,
-                                       const std::function<bool()>& stop) {
+                                       std::uint64_t& nonfinite, const std::function<bool()>& stop,
+                                       SplatSums* splats = nullptr,
+                                       const std::function<void()>& after_batch = {}) {
     constexpr std::size_t kBatch = 8192;  // ~0.1 s of GDMLT proposals on 2 cores
     const std::size_t base = values.size();
     values.resize(base + count, 0.0);
+    if (splats) splats->batch.resize(std::min(count, kBatch));
     tbb::enumerable_thread_specific<ChainState> states;
     std::size_t done = 0;
     while (done < count && !stop()) {
@@ -131,13 +142,20 @@ std::size_t append_independent_targets(const ChainTarget& target,
                           [&](const tbb::blocked_range<std::size_t>& r) {
                               ChainCounters& local = counters.local();
                               ChainState& state = states.local();
-                              for (std::size_t i = r.begin(); i != r.end(); ++i)
+                              for (std::size_t i = r.begin(); i != r.end(); ++i) {
                                   values[base + i] = independent_target(
                                       target, settings,
                                       derive_stream(settings.seed, family, first + i), state,
                                       local);
+                                  if (splats) splats->batch[i - done] = state.splats;
+                              }
                           });
+        if (splats)
+            for (std::size_t i = done; i < batch_end; ++i)
+                for (const Splat& s : splats->batch[i - done])
+                    splats->sums[s.slot] += s.value.cast<double>();
         done = batch_end;
+        if (after_batch) after_batch();
     }
     values.resize(base + done);
     for (std::size_t i = base; i < values.size(); ++i)
@@ -243,13 +261,21 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
         std::max<std::size_t>(static_cast<std::size_t>(settings.bootstrap_samples),
                               10 * static_cast<std::size_t>(chain_count));
     // Ctrl-C or the whole time budget stops the bootstrap between batches (then no chain
-    // runs: what the render has is the bootstrap's b and nothing splatted).
+    // runs, and the estimate is the bootstrap samples' mean).
     const auto stop = [&] {
         return cancelled() || (timed && seconds_since(start) >= settings.time_budget_s);
     };
+    // The bootstrap's splats too: should the run stop before any chain has run, their mean is
+    // the estimate (an unbiased whole image, where the chains would have left nothing).
+    SplatSums bootstrap_splats;
+    bootstrap_splats.sums.assign(target.slot_count(), RgbD::Zero());
+    const auto bootstrap_progress = [&] {
+        if (progress) progress(0.0, seconds_since(start));
+    };
     std::vector<double> bootstrap;
     append_independent_targets(target, settings, kBootstrapStreams, 0, initial, bootstrap, counters,
-                               stats.nonfinite_dropped, stop);
+                               stats.nonfinite_dropped, stop, &bootstrap_splats,
+                               bootstrap_progress);
     const double batch_s = seconds_since(start);
     MeanEstimate b_estimate = mean_of(bootstrap);
     // Every pixel's brightness is b's: grow the bootstrap until b is as precise as asked. With
@@ -261,7 +287,8 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
            !(timed && seconds_since(start) + batch_s >
                           settings.bootstrap_time_fraction * settings.time_budget_s)) {
         append_independent_targets(target, settings, kBootstrapStreams, bootstrap.size(), initial,
-                                   bootstrap, counters, stats.nonfinite_dropped, stop);
+                                   bootstrap, counters, stats.nonfinite_dropped, stop,
+                                   &bootstrap_splats, bootstrap_progress);
         b_estimate = mean_of(bootstrap);
     }
     stats.b = stats.b_bootstrap = b_estimate.mean;
@@ -429,6 +456,13 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
         for (RgbD& v : accumulated) v *= chain_scale;
         for (std::size_t i = 0; i < accumulated_large.size(); ++i)
             accumulated[i] += accumulated_large[i] * scale;
+    } else if (!bootstrap.empty()) {
+        // Stopped (Ctrl-C, time budget) before any chain ran: the bootstrap's samples are
+        // independent and uniform, so their mean is an unbiased estimate of every slot.
+        stats.bootstrap_estimate = true;
+        const double scale = 1.0 / static_cast<double>(bootstrap.size());
+        for (std::size_t i = 0; i < accumulated.size(); ++i)
+            accumulated[i] = bootstrap_splats.sums[i] * scale;
     }
     for (const Chain& c : chains) out.final_density_slots.push_back(c.current.density_slot);
     out.estimate = std::move(accumulated);

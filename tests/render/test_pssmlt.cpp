@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <atomic>
+#include <cmath>
+
 #include "core/render/render_path.h"
 #include "mlt/pssmlt.h"
 #include "tests/support/chi2.h"
@@ -98,6 +101,52 @@ TEST(Pssmlt, ChainsRunThroughMostlyZeroContributionStatesAndStayFinite) {
         sum += v;
     }
     EXPECT_GT(sum, 0.0);
+}
+
+TEST(Pssmlt, CancelledDuringTheBootstrapTheImageIsTheBootstrapsUnbiasedMean) {
+    // Ctrl-C while the bootstrap ran used to leave a black image: no chain had run yet. The
+    // bootstrap's samples are independent and uniform over primary sample space, so their mean
+    // is itself an unbiased whole image. The progress callback, called after every bootstrap
+    // batch of 8192 samples, sets the cancel flag after the fourth: a deterministic cancel.
+    const Scene scene = test::scene_from_xml(test::cornell_box_xml(16));
+    mlt::PssmltSettings settings;
+    settings.seed = 4;
+    settings.bootstrap_samples = 100000;
+    settings.chains = 64;
+    settings.path.max_depth = 8;
+    std::atomic<bool> cancel{false};
+    int calls = 0;
+    const mlt::PssmltOutput out = mlt::render_pssmlt(scene, settings, &cancel, [&](double, double) {
+        if (++calls == 4) cancel = true;
+    });
+    const mlt::PssmltStats& s = out.stats;
+    EXPECT_EQ(calls, 4);
+    EXPECT_TRUE(s.interrupted);
+    EXPECT_TRUE(s.bootstrap_estimate);
+    EXPECT_EQ(s.mutations, 0u);
+    EXPECT_EQ(s.bootstrap_samples, 4u * 8192u);
+    // Whole: 128 samples per pixel, and every pixel of the box sees lit surfaces.
+    int lit = 0;
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x)
+            if (out.image(x, y, 0) + out.image(x, y, 1) + out.image(x, y, 2) > 0.f) ++lit;
+    EXPECT_GE(lit, 243) << "at least 95% of the 256 pixels";
+    // Right: the image mean is the mean luminance of the 32768 samples (b_bootstrap, with its
+    // standard error). The reference, the path tracer at 1024 spp (262144 samples, seed 1), has
+    // 8x as many samples of the same paths (stratified by pixel, which only lowers its
+    // variance): its error variance is at most 1/8 of the bootstrap's. 4 combined standard
+    // errors. The light seen directly spreads the samples widely (one standard error is about
+    // 4% of the mean), so the bound, about 16%, must stay below 20% of the mean: it catches a
+    // black or mis-scaled image, not a bias of a few percent.
+    RenderSettings pt;
+    pt.spp = 1024;
+    pt.seed = 1;
+    pt.path.max_depth = 8;
+    const double reference_mean = test::mean_luminance(render_path(scene, pt).image);
+    const double tolerance = 4.0 * s.b_bootstrap_standard_error * std::sqrt(1.0 + 1.0 / 8.0);
+    EXPECT_NEAR(test::mean_luminance(out.image), reference_mean, tolerance);
+    EXPECT_LT(tolerance, 0.2 * reference_mean);
+    RecordProperty("relative_tolerance", std::to_string(tolerance / reference_mean));
 }
 
 TEST(Pssmlt, SameSeedGivesTheSameImageAtOneAndTwoThreads) {
