@@ -94,18 +94,25 @@ struct MeanEstimate {
     std::uint64_t nonzero = 0;
 };
 
-MeanEstimate mean_of(const std::vector<double>& values) {
+/// Mean and standard error of the mean of n samples, from their sum and sum of squares.
+MeanEstimate mean_from_sums(double sum, double sum2, double n) {
     MeanEstimate m;
-    double sum = 0.0, sum2 = 0.0;
-    for (double v : values) {  // in index order: deterministic
-        sum += v;
-        sum2 += v * v;
-        if (v > 0.0) ++m.nonzero;
-    }
-    const auto n = static_cast<double>(values.size());
     if (n == 0) return m;
     m.mean = sum / n;
     m.standard_error = n > 1 ? std::sqrt(std::max(0.0, sum2 / n - m.mean * m.mean) / (n - 1)) : 0.0;
+    return m;
+}
+
+MeanEstimate mean_of(const std::vector<double>& values) {
+    double sum = 0.0, sum2 = 0.0;
+    std::uint64_t nonzero = 0;
+    for (double v : values) {  // in index order: deterministic
+        sum += v;
+        sum2 += v * v;
+        if (v > 0.0) ++nonzero;
+    }
+    MeanEstimate m = mean_from_sums(sum, sum2, static_cast<double>(values.size()));
+    m.nonzero = nonzero;
     return m;
 }
 
@@ -444,11 +451,10 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
             sum += c.large_target_sum;
             sum2 += c.large_target_sum2;
         }
-        const auto n = static_cast<double>(bootstrap.size() + stats.large_proposed);
         stats.b_samples = bootstrap.size() + stats.large_proposed;
-        stats.b = sum / n;
-        stats.b_standard_error =
-            n > 1 ? std::sqrt(std::max(0.0, sum2 / n - stats.b * stats.b) / (n - 1)) : 0.0;
+        const MeanEstimate b = mean_from_sums(sum, sum2, static_cast<double>(stats.b_samples));
+        stats.b = b.mean;
+        stats.b_standard_error = b.standard_error;
     }
     if (stats.mutations > 0) {
         const double scale = 1.0 / static_cast<double>(stats.mutations);
