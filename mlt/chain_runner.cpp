@@ -181,6 +181,14 @@ void queue_splats(std::vector<QueuedSplat>& queue, const ChainState& state, doub
     }
 }
 
+/// Adds a chain's queued splats of a round to `accumulated` (in queue order: called in chain
+/// order, the sums are the same at any thread count) and empties the queue.
+void merge_queue(std::vector<QueuedSplat>& queue, std::vector<RgbD>& accumulated) {
+    for (const QueuedSplat& q : queue)
+        for (int k = 0; k < 3; ++k) accumulated[q.slot][k] += static_cast<double>(q.value[k]);
+    queue.clear();
+}
+
 /// Advances one chain by up to `mutations` iterations, queueing its splats.
 void run_chain(Chain& chain, const ChainTarget& target, const ChainRunnerSettings& settings,
                double b, std::uint64_t mutations, bool track_density,
@@ -377,17 +385,11 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
                       this_round, track_density, cancel);
         });
         for (Chain& chain : chains) {
-            for (const QueuedSplat& q : chain.queue)
-                for (int k = 0; k < 3; ++k)
-                    accumulated[q.slot][k] += static_cast<double>(q.value[k]);
+            merge_queue(chain.queue, accumulated);
             if (!chain.large_queue.empty() && accumulated_large.empty())
                 accumulated_large.assign(accumulated.size(), RgbD::Zero());
-            for (const QueuedSplat& q : chain.large_queue)
-                for (int k = 0; k < 3; ++k)
-                    accumulated_large[q.slot][k] += static_cast<double>(q.value[k]);
-            chain.large_queue.clear();
+            merge_queue(chain.large_queue, accumulated_large);
             for (std::uint32_t v : chain.visits) ++visits[v];
-            chain.queue.clear();
             chain.visits.clear();
         }
         per_chain_done += this_round;
