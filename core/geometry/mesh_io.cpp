@@ -393,8 +393,7 @@ TriangleMeshData load_mesh(const std::string& path, const FileLoc& loc) {
     const std::string extension = lowercase_extension(path);
     if (extension != ".obj" && extension != ".ply" && extension != ".off")
         throw fail("unsupported format '" + extension + "' (expected .obj, .ply or .off)");
-    std::error_code error;
-    if (!std::filesystem::is_regular_file(path, error)) throw fail("file not found");
+    if (const std::string problem = input_file_problem(path); !problem.empty()) throw fail(problem);
     // Binary mode: PLY (and OFF) may be binary; text readers do not mind.
     std::ifstream stream(path, std::ios::binary);
     if (!stream) throw fail("cannot open file");

@@ -251,9 +251,8 @@ void OutputFiles::add_exr(const std::string& path, const std::vector<ExrLayer>& 
 
 std::vector<ExrLayer> read_exr(const std::string& path, ExrAttributes* attributes) {
     try {
-        if (!fs::exists(path)) throw InputError(path + ": file not found");
-        // A FIFO would block and a device such as /dev/zero never end.
-        if (!fs::is_regular_file(path)) throw InputError(path + ": not a regular file");
+        if (const std::string problem = input_file_problem(path); !problem.empty())
+            throw InputError(path + ": " + problem);
         Imf::InputFile file(path.c_str());
         const Imf::Header& header = file.header();
         const Imath::Box2i dw = header.dataWindow();
@@ -379,9 +378,8 @@ Image read_image(const std::string& path) {
 }
 
 Image read_image(const std::string& path, ImageFileInfo* info) {
-    if (!fs::exists(path)) throw InputError(path + ": file not found");
-    // A FIFO would block and a device such as /dev/zero never end.
-    if (!fs::is_regular_file(path)) throw InputError(path + ": not a regular file");
+    if (const std::string problem = input_file_problem(path); !problem.empty())
+        throw InputError(path + ": " + problem);
     auto in = OIIO::ImageInput::open(path);
     if (!in) throw InputError(path + ": cannot read image: " + OIIO::geterror());
     const OIIO::ImageSpec& spec = in->spec();

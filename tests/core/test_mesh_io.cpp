@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <gtest/gtest.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -264,6 +265,19 @@ TEST(MeshIo, APlyListCountIsNeitherTrustedWithMemoryNorAllowedNegative) {
 TEST(MeshIo, MissingFileIsAnInputError) {
     const TempDir dir;
     load_error((dir.path() / "missing.obj").string());
+}
+
+TEST(MeshIo, AFifoOrADeviceIsAnInputErrorNotAHang) {
+    // Reading a FIFO blocks until a writer opens it, and a device never ends; both must be
+    // refused as "not a regular file" (a FIFO used to be reported as "file not found").
+    const TempDir dir;
+    const fs::path fifo = dir.path() / "mesh.obj";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const std::string message = load_error(fifo.string());
+    EXPECT_NE(message.find("not a regular file"), std::string::npos) << message;
+    fs::create_symlink("/dev/zero", dir.path() / "zero.ply");
+    const std::string device = load_error((dir.path() / "zero.ply").string());
+    EXPECT_NE(device.find("not a regular file"), std::string::npos) << device;
 }
 
 TEST(MeshIo, FaceIndexOutOfRangeIsAnInputError) {
