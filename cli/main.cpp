@@ -176,19 +176,15 @@ OutputPaths output_paths(const RenderOptions& options) {
                          paths.exr + "'");
     paths.png = fs::path(paths.exr).replace_extension(".png").string();
     paths.stats = options.stats_path;
-    const auto same = [](const std::string& a, const std::string& b) {
-        std::error_code ec;
-        return fs::weakly_canonical(a, ec) == fs::weakly_canonical(b, ec);
-    };
     const std::vector<std::pair<std::string, std::string>> outputs = {
         {"-o", paths.exr}, {"the PNG preview", paths.png}, {"--stats", paths.stats}};
     for (std::size_t i = 0; i < outputs.size(); ++i) {
         if (outputs[i].second.empty()) continue;
         check_output_path(outputs[i].second, outputs[i].first);
-        if (same(outputs[i].second, options.scene_path))
+        if (same_file(outputs[i].second, options.scene_path))
             throw InputError(outputs[i].first + " '" + outputs[i].second + "' is the scene file");
         for (std::size_t j = 0; j < i; ++j)
-            if (same(outputs[i].second, outputs[j].second))
+            if (same_file(outputs[i].second, outputs[j].second))
                 throw InputError(outputs[i].first + " and " + outputs[j].first +
                                  " name the same file '" + outputs[i].second + "'");
     }

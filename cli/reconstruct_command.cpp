@@ -75,10 +75,7 @@ int run_reconstruct(ReconstructOptions o) {
     const std::string png = std::filesystem::path(output).replace_extension(".png").string();
     for (const std::string& path : {output, png}) {
         check_output_path(path, "-o");
-        std::error_code ec;
-        if (std::filesystem::weakly_canonical(path, ec) ==
-            std::filesystem::weakly_canonical(o.input, ec))
-            throw InputError("-o '" + path + "' is the input file");
+        if (same_file(path, o.input)) throw InputError("-o '" + path + "' is the input file");
     }
     ExrAttributes attributes;
     const GradientBuffers buffers = read_buffers(o.input, attributes);

@@ -163,6 +163,22 @@ void check_output_path(const std::string& path, const std::string& what) {
                           "' is not writable");
 }
 
+bool same_file(const std::string& a, const std::string& b) {
+    std::error_code ec;
+    if (fs::exists(a, ec) && fs::exists(b, ec)) {
+        const bool same = fs::equivalent(a, b, ec);
+        if (!ec) return same;
+    }
+    std::error_code error_a, error_b;
+    const fs::path canonical_a = fs::weakly_canonical(a, error_a);
+    const fs::path canonical_b = fs::weakly_canonical(b, error_b);
+    if (!error_a && !error_b) return canonical_a == canonical_b;
+    // Unresolvable (e.g. a directory without search permission): compare the spelled paths;
+    // two failures must not compare as two equal empty paths.
+    return fs::absolute(a, error_a).lexically_normal() ==
+           fs::absolute(b, error_b).lexically_normal();
+}
+
 void write_text_file(const std::string& path, const std::string& text) {
     OutputFiles files;
     files.add_text(path, text);

@@ -23,6 +23,11 @@ struct OutputError : std::runtime_error {
 /// would hold it, must be writable. `what` names the option in the message.
 void check_output_path(const std::string& path, const std::string& what);
 
+/// Whether two paths name the same file: the same inode when both exist (so hard links and
+/// symbolic links count), else the same path once symbolic links, "." and ".." are resolved.
+/// Outputs must not replace the scene, the input or each other.
+bool same_file(const std::string& a, const std::string& b);
+
 /// Writes `text` to `path` through a temporary file renamed over it; the temporary is removed
 /// on failure. Throws OutputError.
 void write_text_file(const std::string& path, const std::string& text);
