@@ -75,10 +75,7 @@ int run_reconstruct(ReconstructOptions o) {
     const std::string png = std::filesystem::path(output).replace_extension(".png").string();
     for (const std::string& path : {output, png}) {
         check_output_path(path, "-o");
-        std::error_code ec;
-        if (std::filesystem::weakly_canonical(path, ec) ==
-            std::filesystem::weakly_canonical(o.input, ec))
-            throw InputError("-o '" + path + "' is the input file");
+        if (same_file(path, o.input)) throw InputError("-o '" + path + "' is the input file");
     }
     ExrAttributes attributes;
     const GradientBuffers buffers = read_buffers(o.input, attributes);
@@ -128,8 +125,10 @@ int run_reconstruct(ReconstructOptions o) {
     attributes["gdmlt.reconstruct.relative_residual"] = std::to_string(s.final_relative_residual);
     attributes["gdmlt.reconstruct.dropped_edges"] =
         std::to_string(s.dropped_nonfinite_edges + s.dropped_negative_weight_edges);
-    write_exr(output, {{"", {"R", "G", "B"}, result.image}}, attributes);
-    write_png_srgb(png, result.image, o.exposure);
+    OutputFiles files;  // all or nothing, as a render's
+    files.add_png_srgb(png, result.image, o.exposure);
+    files.add_exr(output, {{"", {"R", "G", "B"}, result.image}}, attributes);
+    files.commit();
 
     if (!o.quiet) {
         std::fprintf(

@@ -94,35 +94,53 @@ struct MeanEstimate {
     std::uint64_t nonzero = 0;
 };
 
-MeanEstimate mean_of(const std::vector<double>& values) {
+/// Mean and standard error of the mean of n samples, from their sum and sum of squares.
+MeanEstimate mean_from_sums(double sum, double sum2, double n) {
     MeanEstimate m;
-    double sum = 0.0, sum2 = 0.0;
-    for (double v : values) {  // in index order: deterministic
-        sum += v;
-        sum2 += v * v;
-        if (v > 0.0) ++m.nonzero;
-    }
-    const auto n = static_cast<double>(values.size());
     if (n == 0) return m;
     m.mean = sum / n;
     m.standard_error = n > 1 ? std::sqrt(std::max(0.0, sum2 / n - m.mean * m.mean) / (n - 1)) : 0.0;
     return m;
 }
 
+MeanEstimate mean_of(const std::vector<double>& values) {
+    double sum = 0.0, sum2 = 0.0;
+    std::uint64_t nonzero = 0;
+    for (double v : values) {  // in index order: deterministic
+        sum += v;
+        sum2 += v * v;
+        if (v > 0.0) ++nonzero;
+    }
+    MeanEstimate m = mean_from_sums(sum, sum2, static_cast<double>(values.size()));
+    m.nonzero = nonzero;
+    return m;
+}
+
+/// The independent samples' contributions, summed per slot: each sample is uniform over primary
+/// sample space, so sums / count estimate every slot's integral without a chain.
+struct SplatSums {
+    std::vector<RgbD> sums;
+    std::vector<std::vector<Splat>> batch;  // per sample of the current batch, merged in order
+};
+
 /// Targets of independent samples [first, first + count) of stream family `family`, appended
-/// to `values` in index order; non-finite ones count as 0 and are counted. Evaluated in
-/// batches, between which `stop` is asked: a huge bootstrap must not outlast Ctrl-C or the
-/// time budget. Returns how many were appended (fewer than `count` only when stopped).
+/// to `values` in index order; non-finite ones count as 0 and are counted. With `splats`, their
+/// splats are added to splats->sums in index order (deterministic at any thread count).
+/// Evaluated in batches, between which `stop` is asked (a huge bootstrap must not outlast
+/// Ctrl-C or the time budget) and after each of which `after_batch` is called. Returns how many
+/// were appended (fewer than `count` only when stopped).
 std::size_t append_independent_targets(const ChainTarget& target,
                                        const ChainRunnerSettings& settings, std::uint64_t family,
                                        std::size_t first, std::size_t count,
                                        std::vector<double>& values,
                                        tbb::enumerable_thread_specific<ChainCounters>& counters,
-                                       std::uint64_t& nonfinite,
-                                       const std::function<bool()>& stop) {
+                                       std::uint64_t& nonfinite, const std::function<bool()>& stop,
+                                       SplatSums* splats = nullptr,
+                                       const std::function<void()>& after_batch = {}) {
     constexpr std::size_t kBatch = 8192;  // ~0.1 s of GDMLT proposals on 2 cores
     const std::size_t base = values.size();
     values.resize(base + count, 0.0);
+    if (splats) splats->batch.resize(std::min(count, kBatch));
     tbb::enumerable_thread_specific<ChainState> states;
     std::size_t done = 0;
     while (done < count && !stop()) {
@@ -131,13 +149,20 @@ std::size_t append_independent_targets(const ChainTarget& target,
                           [&](const tbb::blocked_range<std::size_t>& r) {
                               ChainCounters& local = counters.local();
                               ChainState& state = states.local();
-                              for (std::size_t i = r.begin(); i != r.end(); ++i)
+                              for (std::size_t i = r.begin(); i != r.end(); ++i) {
                                   values[base + i] = independent_target(
                                       target, settings,
                                       derive_stream(settings.seed, family, first + i), state,
                                       local);
+                                  if (splats) splats->batch[i - done] = state.splats;
+                              }
                           });
+        if (splats)
+            for (std::size_t i = done; i < batch_end; ++i)
+                for (const Splat& s : splats->batch[i - done])
+                    splats->sums[s.slot] += s.value.cast<double>();
         done = batch_end;
+        if (after_batch) after_batch();
     }
     values.resize(base + done);
     for (std::size_t i = base; i < values.size(); ++i)
@@ -154,6 +179,14 @@ void queue_splats(std::vector<QueuedSplat>& queue, const ChainState& state, doub
         const Rgb v = s.value * static_cast<float>(weight);
         queue.push_back({s.slot, {v[0], v[1], v[2]}});
     }
+}
+
+/// Adds a chain's queued splats of a round to `accumulated` (in queue order: called in chain
+/// order, the sums are the same at any thread count) and empties the queue.
+void merge_queue(std::vector<QueuedSplat>& queue, std::vector<RgbD>& accumulated) {
+    for (const QueuedSplat& q : queue)
+        for (int k = 0; k < 3; ++k) accumulated[q.slot][k] += static_cast<double>(q.value[k]);
+    queue.clear();
 }
 
 /// Advances one chain by up to `mutations` iterations, queueing its splats.
@@ -243,13 +276,21 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
         std::max<std::size_t>(static_cast<std::size_t>(settings.bootstrap_samples),
                               10 * static_cast<std::size_t>(chain_count));
     // Ctrl-C or the whole time budget stops the bootstrap between batches (then no chain
-    // runs: what the render has is the bootstrap's b and nothing splatted).
+    // runs, and the estimate is the bootstrap samples' mean).
     const auto stop = [&] {
         return cancelled() || (timed && seconds_since(start) >= settings.time_budget_s);
     };
+    // The bootstrap's splats too: should the run stop before any chain has run, their mean is
+    // the estimate (an unbiased whole image, where the chains would have left nothing).
+    SplatSums bootstrap_splats;
+    bootstrap_splats.sums.assign(target.slot_count(), RgbD::Zero());
+    const auto bootstrap_progress = [&] {
+        if (progress) progress(0.0, seconds_since(start));
+    };
     std::vector<double> bootstrap;
     append_independent_targets(target, settings, kBootstrapStreams, 0, initial, bootstrap, counters,
-                               stats.nonfinite_dropped, stop);
+                               stats.nonfinite_dropped, stop, &bootstrap_splats,
+                               bootstrap_progress);
     const double batch_s = seconds_since(start);
     MeanEstimate b_estimate = mean_of(bootstrap);
     // Every pixel's brightness is b's: grow the bootstrap until b is as precise as asked. With
@@ -261,7 +302,8 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
            !(timed && seconds_since(start) + batch_s >
                           settings.bootstrap_time_fraction * settings.time_budget_s)) {
         append_independent_targets(target, settings, kBootstrapStreams, bootstrap.size(), initial,
-                                   bootstrap, counters, stats.nonfinite_dropped, stop);
+                                   bootstrap, counters, stats.nonfinite_dropped, stop,
+                                   &bootstrap_splats, bootstrap_progress);
         b_estimate = mean_of(bootstrap);
     }
     stats.b = stats.b_bootstrap = b_estimate.mean;
@@ -343,17 +385,11 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
                       this_round, track_density, cancel);
         });
         for (Chain& chain : chains) {
-            for (const QueuedSplat& q : chain.queue)
-                for (int k = 0; k < 3; ++k)
-                    accumulated[q.slot][k] += static_cast<double>(q.value[k]);
+            merge_queue(chain.queue, accumulated);
             if (!chain.large_queue.empty() && accumulated_large.empty())
                 accumulated_large.assign(accumulated.size(), RgbD::Zero());
-            for (const QueuedSplat& q : chain.large_queue)
-                for (int k = 0; k < 3; ++k)
-                    accumulated_large[q.slot][k] += static_cast<double>(q.value[k]);
-            chain.large_queue.clear();
+            merge_queue(chain.large_queue, accumulated_large);
             for (std::uint32_t v : chain.visits) ++visits[v];
-            chain.queue.clear();
             chain.visits.clear();
         }
         per_chain_done += this_round;
@@ -417,11 +453,10 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
             sum += c.large_target_sum;
             sum2 += c.large_target_sum2;
         }
-        const auto n = static_cast<double>(bootstrap.size() + stats.large_proposed);
         stats.b_samples = bootstrap.size() + stats.large_proposed;
-        stats.b = sum / n;
-        stats.b_standard_error =
-            n > 1 ? std::sqrt(std::max(0.0, sum2 / n - stats.b * stats.b) / (n - 1)) : 0.0;
+        const MeanEstimate b = mean_from_sums(sum, sum2, static_cast<double>(stats.b_samples));
+        stats.b = b.mean;
+        stats.b_standard_error = b.standard_error;
     }
     if (stats.mutations > 0) {
         const double scale = 1.0 / static_cast<double>(stats.mutations);
@@ -429,6 +464,13 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
         for (RgbD& v : accumulated) v *= chain_scale;
         for (std::size_t i = 0; i < accumulated_large.size(); ++i)
             accumulated[i] += accumulated_large[i] * scale;
+    } else if (!bootstrap.empty()) {
+        // Stopped (Ctrl-C, time budget) before any chain ran: the bootstrap's samples are
+        // independent and uniform, so their mean is an unbiased estimate of every slot.
+        stats.bootstrap_estimate = true;
+        const double scale = 1.0 / static_cast<double>(bootstrap.size());
+        for (std::size_t i = 0; i < accumulated.size(); ++i)
+            accumulated[i] = bootstrap_splats.sums[i] * scale;
     }
     for (const Chain& c : chains) out.final_density_slots.push_back(c.current.density_slot);
     out.estimate = std::move(accumulated);

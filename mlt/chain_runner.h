@@ -154,6 +154,8 @@ struct ChainStats {
     manifold::ShiftCounters shifts;
     double bootstrap_s = 0.0, chains_s = 0.0, total_s = 0.0;
     bool interrupted = false;
+    /// Stopped before any chain ran: the estimate is the mean of the bootstrap's samples.
+    bool bootstrap_estimate = false;
 };
 
 struct ChainRunnerOutput {
@@ -167,9 +169,10 @@ struct ChainRunnerOutput {
     ChainStats stats;
 };
 
-/// Runs the chains. `cancel` is polled every few hundred mutations; `progress` gets the fraction
-/// done and the elapsed time after every round. With a mutation budget (no time budget) the
-/// result depends only on the settings, never on the thread count.
+/// Runs the chains. `cancel` is polled every few hundred mutations and between bootstrap batches;
+/// `progress` gets the fraction done and the elapsed time after every round (and fraction 0
+/// after every bootstrap batch). With a mutation budget (no time budget) the result depends only
+/// on the settings, never on the thread count.
 ChainRunnerOutput run_chains(
     const ChainTarget& target, const ChainRunnerSettings& settings,
     const std::atomic<bool>* cancel = nullptr,

@@ -18,6 +18,9 @@
 #include <iterator>
 #include <limits>
 #include <optional>
+#include <sstream>
+#include <type_traits>
+#include <vector>
 
 namespace gdmlt {
 namespace {
@@ -87,10 +90,72 @@ PolygonSoup read_off(std::istream& stream) {
 
 using PlyElement = CGAL::IO::internal::PLY_element;
 
+using PlyProperty = CGAL::IO::internal::PLY_read_number;
+template <typename Size, typename Index>
+using PlyList = CGAL::IO::internal::PLY_read_typed_list_with_typed_size<Size, Index>;
+
+/// Reads a list property into CGAL's own buffer (which assign() reads; it is `mutable`, so
+/// writing it through buffer() is well defined). CGAL's get() resizes the buffer to the count
+/// it has read before reading any item: a fuzzed count of 10^9 zero-filled 4 GB for 15 s, a
+/// negative one threw length_error. Here items are appended one by one and reading stops at the
+/// first failure (read_ply_item then reports the truncated file), so memory stays bounded by
+/// the file's size.
+template <typename Size, typename Index>
+void read_bounded_list(std::istream& stream, PlyProperty& property) {
+    auto& list = static_cast<PlyList<Size, Index>&>(property);
+    auto& items = const_cast<std::vector<Index>&>(list.buffer());
+    items.clear();
+    const Size count = list.template read<Size>(stream);
+    if constexpr (std::is_signed_v<Size>)
+        if (count < 0) stream.setstate(std::ios::failbit);
+    for (std::size_t i = 0; stream && i < static_cast<std::size_t>(count); ++i)
+        items.push_back(list.template read<Index>(stream));
+}
+
+/// read_bounded_list for `property` if it is a list (of any of CGAL's size and index types),
+/// else null.
+using ListReader = void (*)(std::istream&, PlyProperty&);
+template <typename Size, typename... Indices>
+ListReader list_reader_with_size(PlyProperty& property) {
+    ListReader found = nullptr;
+    ((found = found ? found
+                    : (dynamic_cast<PlyList<Size, Indices>*>(&property) != nullptr
+                           ? &read_bounded_list<Size, Indices>
+                           : nullptr)),
+     ...);
+    return found;
+}
+template <typename... Sizes>
+ListReader list_reader_any_size(PlyProperty& property) {
+    ListReader found = nullptr;
+    ((found =
+          found
+              ? found
+              : list_reader_with_size<Sizes, std::int8_t, std::uint8_t, std::int16_t, std::uint16_t,
+                                      std::int32_t, std::uint32_t, float, double>(property)),
+     ...);
+    return found;
+}
+
+/// Per property of `element`: how to read it if it is a list, null for a number (classified
+/// once per element, not per item: big meshes have millions of items).
+std::vector<ListReader> list_readers(PlyElement& element) {
+    std::vector<ListReader> readers;
+    for (std::size_t k = 0; k < element.number_of_properties(); ++k)
+        readers.push_back(
+            list_reader_any_size<std::uint8_t, std::int8_t, std::uint16_t, std::int16_t,
+                                 std::uint32_t, std::int32_t>(*element.property(k)));
+    return readers;
+}
+
 /// Reads one item (all its properties) of a PLY element from the stream.
-void read_ply_item(std::istream& stream, PlyElement& element) {
+void read_ply_item(std::istream& stream, PlyElement& element,
+                   const std::vector<ListReader>& lists) {
     for (std::size_t k = 0; k < element.number_of_properties(); ++k) {
-        element.property(k)->get(stream);
+        if (lists[k])
+            lists[k](stream, *element.property(k));
+        else
+            element.property(k)->get(stream);
         if (stream.fail())
             throw MeshReadError{
                 "truncated or malformed PLY data (or a non-finite number in ASCII)"};
@@ -147,8 +212,9 @@ void read_ply_vertices(std::istream& stream, PlyElement& element, PolygonSoup& s
             break;
         }
 
+    const std::vector<ListReader> lists = list_readers(element);
     for (std::size_t i = 0; i < element.number_of_items(); ++i) {
-        read_ply_item(stream, element);
+        read_ply_item(stream, element, lists);
         soup.positions.emplace_back(real_property(element, "x"), real_property(element, "y"),
                                     real_property(element, "z"));
         if (has_normals)
@@ -161,8 +227,9 @@ void read_ply_vertices(std::istream& stream, PlyElement& element, PolygonSoup& s
 }
 
 void read_ply_faces(std::istream& stream, PlyElement& element, PolygonSoup& soup) {
+    const std::vector<ListReader> lists = list_readers(element);
     for (std::size_t i = 0; i < element.number_of_items(); ++i) {
-        read_ply_item(stream, element);
+        read_ply_item(stream, element, lists);
         Polygon polygon;
         if (!read_face_indices_any_type(element, "vertex_indices", polygon) &&
             !read_face_indices_any_type(element, "vertex_index", polygon))
@@ -171,7 +238,30 @@ void read_ply_faces(std::istream& stream, PlyElement& element, PolygonSoup& soup
     }
 }
 
+/// CGAL's header reader adds each `property` to the last `element` without asking whether there
+/// is one: a property line before the first element line crashed it (the loader fuzzer found
+/// it, tests/core/test_loader_fuzz.cpp). Checks that order on the header as CGAL reads it (line
+/// 1 the signature, line 2 the format, keywords from line 3 to end_header), then rewinds.
+void check_ply_property_order(std::istream& stream) {
+    std::string line;
+    bool element_seen = false;
+    for (std::size_t number = 1; std::getline(stream, line); ++number) {
+        if (number <= 2) continue;
+        std::istringstream words(line);
+        std::string keyword;
+        words >> keyword;
+        if (keyword == "end_header") break;
+        if (keyword == "element") element_seen = true;
+        if (keyword == "property" && !element_seen)
+            throw MeshReadError{"PLY header line " + std::to_string(number) +
+                                ": a property before any element"};
+    }
+    stream.clear();
+    stream.seekg(0);
+}
+
 PolygonSoup read_ply(std::istream& stream) {
+    check_ply_property_order(stream);
     CGAL::IO::internal::PLY_reader reader(/*verbose=*/false);
     if (!reader.init(stream)) throw MeshReadError{"not a PLY file (bad header)"};
     PolygonSoup soup;
@@ -182,9 +272,13 @@ PolygonSoup read_ply(std::istream& stream) {
         } else if (element.name() == "face" || element.name() == "faces") {
             read_ply_faces(stream, element, soup);
         } else {
-            // Unknown elements still have to be consumed to reach the ones after them.
+            // Unknown elements still have to be consumed to reach the ones after them. One
+            // without properties occupies no bytes however many items it claims (counting to a
+            // fuzzed 2^40 items hung the loader).
+            if (element.number_of_properties() == 0) continue;
+            const std::vector<ListReader> lists = list_readers(element);
             for (std::size_t i = 0; i < element.number_of_items(); ++i)
-                read_ply_item(stream, element);
+                read_ply_item(stream, element, lists);
         }
     }
     return soup;
@@ -299,8 +393,7 @@ TriangleMeshData load_mesh(const std::string& path, const FileLoc& loc) {
     const std::string extension = lowercase_extension(path);
     if (extension != ".obj" && extension != ".ply" && extension != ".off")
         throw fail("unsupported format '" + extension + "' (expected .obj, .ply or .off)");
-    std::error_code error;
-    if (!std::filesystem::is_regular_file(path, error)) throw fail("file not found");
+    if (const std::string problem = input_file_problem(path); !problem.empty()) throw fail(problem);
     // Binary mode: PLY (and OFF) may be binary; text readers do not mind.
     std::ifstream stream(path, std::ios::binary);
     if (!stream) throw fail("cannot open file");

@@ -12,10 +12,13 @@
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStringAttribute.h>
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -62,15 +65,68 @@ fs::path temp_path_beside(const std::string& path) {
     return tmp;
 }
 
-void rename_over(const fs::path& tmp, const std::string& path) {
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    if (ec) {
-        const std::string reason = ec.message();
-        fs::remove(tmp, ec);
-        throw OutputError("cannot write '" + path + "': " + reason);
+/// A new file written through checked system calls. The first failure is remembered with its
+/// errno rather than thrown at once: OpenEXR writes its line offset table in OutputFile's
+/// destructor and swallows any exception there, so only finish() reports.
+class CheckedFile {
+  public:
+    CheckedFile(const fs::path& temporary, const std::string& path) : path_(path) {
+        fd_ = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+        if (fd_ < 0) error_ = errno;
     }
-}
+    ~CheckedFile() {
+        if (fd_ >= 0) ::close(fd_);
+    }
+    CheckedFile(const CheckedFile&) = delete;
+    CheckedFile& operator=(const CheckedFile&) = delete;
+
+    void write(const char* data, std::size_t size) {
+        while (error_ == 0 && size > 0) {
+            const ssize_t n = ::write(fd_, data, size);
+            if (n < 0) {
+                if (errno != EINTR) error_ = errno;
+                continue;
+            }
+            data += n;
+            size -= static_cast<std::size_t>(n);
+        }
+    }
+    void seek(std::uint64_t position) {
+        if (error_ == 0 && ::lseek(fd_, static_cast<off_t>(position), SEEK_SET) < 0) error_ = errno;
+    }
+    bool failed() const { return error_ != 0; }
+    /// Closes the file; throws OutputError naming the path and the first failure's reason.
+    void finish() {
+        if (fd_ >= 0 && ::close(fd_) != 0 && error_ == 0) error_ = errno;
+        fd_ = -1;
+        if (error_ != 0)
+            throw OutputError("cannot write '" + path_ + "': " + std::strerror(error_));
+    }
+
+  private:
+    std::string path_;
+    int fd_ = -1;
+    int error_ = 0;
+};
+
+/// OpenEXR's output stream on a CheckedFile.
+class ExrFileStream final : public Imf::OStream {
+  public:
+    ExrFileStream(CheckedFile& file, const char* name) : Imf::OStream(name), file_(file) {}
+    void write(const char c[], int n) override {
+        file_.write(c, static_cast<std::size_t>(n));
+        position_ += static_cast<std::uint64_t>(n);
+    }
+    std::uint64_t tellp() override { return position_; }
+    void seekp(std::uint64_t position) override {
+        file_.seek(position);
+        position_ = position;
+    }
+
+  private:
+    CheckedFile& file_;
+    std::uint64_t position_ = 0;
+};
 
 std::string full_channel_name(const ExrLayer& layer, std::size_t c) {
     return layer.name.empty() ? layer.channel_names[c] : layer.name + "." + layer.channel_names[c];
@@ -107,23 +163,62 @@ void check_output_path(const std::string& path, const std::string& what) {
                           "' is not writable");
 }
 
-void write_text_file(const std::string& path, const std::string& text) {
-    const fs::path tmp = temp_path_beside(path);
-    {
-        std::ofstream out(tmp, std::ios::binary);
-        out << text;
-        out.flush();
-        if (!out) {
-            std::error_code ec;
-            fs::remove(tmp, ec);
-            throw OutputError("cannot write '" + path + "': " + std::strerror(errno));
-        }
+bool same_file(const std::string& a, const std::string& b) {
+    std::error_code ec;
+    if (fs::exists(a, ec) && fs::exists(b, ec)) {
+        const bool same = fs::equivalent(a, b, ec);
+        if (!ec) return same;
     }
-    rename_over(tmp, path);
+    std::error_code error_a, error_b;
+    const fs::path canonical_a = fs::weakly_canonical(a, error_a);
+    const fs::path canonical_b = fs::weakly_canonical(b, error_b);
+    if (!error_a && !error_b) return canonical_a == canonical_b;
+    // Unresolvable (e.g. a directory without search permission): compare the spelled paths;
+    // two failures must not compare as two equal empty paths.
+    return fs::absolute(a, error_a).lexically_normal() ==
+           fs::absolute(b, error_b).lexically_normal();
+}
+
+void write_text_file(const std::string& path, const std::string& text) {
+    OutputFiles files;
+    files.add_text(path, text);
+    files.commit();
+}
+
+OutputFiles::~OutputFiles() {
+    for (const Staged& file : staged_) {
+        std::error_code ignored;
+        fs::remove(file.temporary, ignored);
+    }
+}
+
+void OutputFiles::add_text(const std::string& path, const std::string& text) {
+    const fs::path temporary = temp_path_beside(path);
+    staged_.push_back({path, temporary.string()});  // from here on removed on failure
+    CheckedFile file(temporary, path);
+    file.write(text.data(), text.size());
+    file.finish();
+}
+
+void OutputFiles::commit() {
+    while (!staged_.empty()) {
+        const Staged& file = staged_.front();
+        std::error_code ec;
+        fs::rename(file.temporary, file.path, ec);
+        if (ec) throw OutputError("cannot write '" + file.path + "': " + ec.message());
+        staged_.erase(staged_.begin());
+    }
 }
 
 void write_exr(const std::string& path, const std::vector<ExrLayer>& layers,
                const ExrAttributes& attributes) {
+    OutputFiles files;
+    files.add_exr(path, layers, attributes);
+    files.commit();
+}
+
+void OutputFiles::add_exr(const std::string& path, const std::vector<ExrLayer>& layers,
+                          const ExrAttributes& attributes) {
     if (layers.empty()) throw std::runtime_error("write_exr: no layers for '" + path + "'");
     const int width = layers.front().image.width;
     const int height = layers.front().image.height;
@@ -155,24 +250,25 @@ void write_exr(const std::string& path, const std::vector<ExrLayer>& layers,
         }
     }
 
-    const fs::path tmp = temp_path_beside(path);
+    const fs::path temporary = temp_path_beside(path);
+    staged_.push_back({path, temporary.string()});  // from here on removed on failure
+    CheckedFile file(temporary, path);
     try {
-        Imf::OutputFile file(tmp.c_str(), header);
-        file.setFrameBuffer(frame);
-        file.writePixels(height);
+        ExrFileStream stream(file, temporary.c_str());
+        Imf::OutputFile exr(stream, header);
+        exr.setFrameBuffer(frame);
+        exr.writePixels(height);
     } catch (const std::exception& e) {
-        std::error_code ec;
-        fs::remove(tmp, ec);
-        throw OutputError("cannot write EXR '" + path + "': " + e.what());
+        // A failed write is reported by finish() with the system's reason.
+        if (!file.failed()) throw OutputError("cannot write EXR '" + path + "': " + e.what());
     }
-    rename_over(tmp, path);
+    file.finish();
 }
 
 std::vector<ExrLayer> read_exr(const std::string& path, ExrAttributes* attributes) {
     try {
-        if (!fs::exists(path)) throw InputError(path + ": file not found");
-        // A FIFO would block and a device such as /dev/zero never end.
-        if (!fs::is_regular_file(path)) throw InputError(path + ": not a regular file");
+        if (const std::string problem = input_file_problem(path); !problem.empty())
+            throw InputError(path + ": " + problem);
         Imf::InputFile file(path.c_str());
         const Imf::Header& header = file.header();
         const Imath::Box2i dw = header.dataWindow();
@@ -250,6 +346,12 @@ float linear_to_srgb(float v) {
 }
 
 void write_png_srgb(const std::string& path, const Image& rgb, float exposure_stops) {
+    OutputFiles files;
+    files.add_png_srgb(path, rgb, exposure_stops);
+    files.commit();
+}
+
+void OutputFiles::add_png_srgb(const std::string& path, const Image& rgb, float exposure_stops) {
     if (rgb.width <= 0 || rgb.height <= 0 || rgb.channels < 1)
         throw std::runtime_error("write_png_srgb: empty image for '" + path + "'");
     const int out_channels = rgb.channels >= 3 ? 3 : 1;
@@ -267,31 +369,24 @@ void write_png_srgb(const std::string& path, const Image& rgb, float exposure_st
         }
     }
 
-    const fs::path tmp = temp_path_beside(path);
-    auto out = OIIO::ImageOutput::create(tmp.string());
-    if (!out) throw OutputError("cannot create PNG writer for '" + path + "'");
+    // Encoded in memory (a preview is small), then written with checked calls: libpng does not
+    // report every failed write (a full disk left a truncated PNG and exit code 0).
+    std::vector<unsigned char> encoded;
+    OIIO::Filesystem::IOVecOutput memory(encoded);
+    auto out = OIIO::ImageOutput::create("png");
+    if (!out || !out->supports("ioproxy"))
+        throw OutputError("cannot create PNG writer for '" + path + "'");
     OIIO::ImageSpec spec(rgb.width, rgb.height, out_channels, OIIO::TypeDesc::UINT8);
-    bool ok =
-        out->open(tmp.string(), spec) && out->write_image(OIIO::TypeDesc::UINT8, bytes.data());
+    bool ok = out->set_ioproxy(&memory) && out->open(path, spec) &&
+              out->write_image(OIIO::TypeDesc::UINT8, bytes.data());
     ok = out->close() && ok;
-    std::string err = ok ? "" : out->geterror();
+    if (!ok) throw OutputError("cannot encode PNG '" + path + "': " + out->geterror());
     out.reset();
-    // libpng does not report every failed write (a full disk left a truncated PNG and exit
-    // code 0): read the file back before it replaces anything.
-    if (ok) {
-        auto check = OIIO::ImageInput::open(tmp.string());
-        std::vector<std::uint8_t> back(bytes.size());
-        ok = check && check->spec().width == rgb.width && check->spec().height == rgb.height &&
-             check->read_image(0, 0, 0, out_channels, OIIO::TypeDesc::UINT8, back.data()) &&
-             back == bytes;
-        if (!ok) err = "the file did not read back (disk full?)";
-    }
-    if (!ok) {
-        std::error_code ec;
-        fs::remove(tmp, ec);
-        throw OutputError("cannot write PNG '" + path + "': " + err);
-    }
-    rename_over(tmp, path);
+    const fs::path temporary = temp_path_beside(path);
+    staged_.push_back({path, temporary.string()});  // from here on removed on failure
+    CheckedFile file(temporary, path);
+    file.write(reinterpret_cast<const char*>(encoded.data()), encoded.size());
+    file.finish();
 }
 
 Image read_image(const std::string& path) {
@@ -299,9 +394,8 @@ Image read_image(const std::string& path) {
 }
 
 Image read_image(const std::string& path, ImageFileInfo* info) {
-    if (!fs::exists(path)) throw InputError(path + ": file not found");
-    // A FIFO would block and a device such as /dev/zero never end.
-    if (!fs::is_regular_file(path)) throw InputError(path + ": not a regular file");
+    if (const std::string problem = input_file_problem(path); !problem.empty())
+        throw InputError(path + ": " + problem);
     auto in = OIIO::ImageInput::open(path);
     if (!in) throw InputError(path + ": cannot read image: " + OIIO::geterror());
     const OIIO::ImageSpec& spec = in->spec();

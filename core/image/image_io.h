@@ -23,6 +23,11 @@ struct OutputError : std::runtime_error {
 /// would hold it, must be writable. `what` names the option in the message.
 void check_output_path(const std::string& path, const std::string& what);
 
+/// Whether two paths name the same file: the same inode when both exist (so hard links and
+/// symbolic links count), else the same path once symbolic links, "." and ".." are resolved.
+/// Outputs must not replace the scene, the input or each other.
+bool same_file(const std::string& a, const std::string& b);
+
 /// Writes `text` to `path` through a temporary file renamed over it; the temporary is removed
 /// on failure. Throws OutputError.
 void write_text_file(const std::string& path, const std::string& text);
@@ -53,6 +58,37 @@ std::vector<ExrLayer> read_exr(const std::string& path, ExrAttributes* attribute
 /// Writes an 8-bit sRGB PNG preview of a linear RGB image, scaled by 2^exposure_stops, clamped.
 /// Same temporary-file-and-rename rule.
 void write_png_srgb(const std::string& path, const Image& rgb, float exposure_stops = 0.f);
+
+/// Files that replace their paths together or not at all: each is written to a temporary file
+/// beside its path, and only when every one has been written does commit() rename them over
+/// their paths (a new EXR beside the previous render's statistics would mislead whoever reads
+/// them together). Every write is a checked system call: libpng and OpenEXR's destructor do not
+/// report all failures, and a full disk once left an empty EXR behind. A failure throws
+/// OutputError naming the file and the system's reason ("File too large", "No space left on
+/// device"); the destructor removes every temporary not yet renamed.
+class OutputFiles {
+  public:
+    OutputFiles() = default;
+    ~OutputFiles();
+    OutputFiles(const OutputFiles&) = delete;
+    OutputFiles& operator=(const OutputFiles&) = delete;
+
+    /// Multi-layer float32 EXR (see write_exr).
+    void add_exr(const std::string& path, const std::vector<ExrLayer>& layers,
+                 const ExrAttributes& attributes = {});
+    /// 8-bit sRGB PNG preview (see write_png_srgb).
+    void add_png_srgb(const std::string& path, const Image& rgb, float exposure_stops = 0.f);
+    void add_text(const std::string& path, const std::string& text);
+    /// Renames every file over its path, in the order added. Throws OutputError (a rename fails
+    /// only in a directory that changed under us; files renamed before it stay).
+    void commit();
+
+  private:
+    struct Staged {
+        std::string path, temporary;
+    };
+    std::vector<Staged> staged_;
+};
 
 /// Reads any image OpenImageIO understands (EXR, HDR, PNG, JPEG...) as float RGB(A) with the
 /// file's channel count; 8-bit sRGB files are returned as stored (no linearisation here).

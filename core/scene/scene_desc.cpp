@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "core/scene/scene_desc.h"
 
+#include <filesystem>
+
 namespace gdmlt {
 
 std::string FileLoc::to_string() const {
@@ -26,5 +28,13 @@ std::string format_input_error(const FileLoc& loc, const std::string& what) {
 
 InputError::InputError(const FileLoc& loc, const std::string& what)
     : std::runtime_error(format_input_error(loc, what)) {}
+
+std::string input_file_problem(const std::string& path) {
+    std::error_code error;
+    const std::filesystem::file_status status = std::filesystem::status(path, error);
+    if (!std::filesystem::exists(status)) return "no such file";
+    if (!std::filesystem::is_regular_file(status)) return "not a regular file";
+    return {};
+}
 
 }  // namespace gdmlt

@@ -41,6 +41,12 @@ class InputError : public std::runtime_error {
     explicit InputError(const std::string& what) : std::runtime_error(what) {}
 };
 
+/// Why `path` cannot be read as an input file (scene, include, mesh, texture, EXR), or an empty
+/// string when it can: only existing regular files are read ("no such file", "not a regular
+/// file": reading a FIFO blocks until a writer appears, and a device such as /dev/zero never
+/// ends).
+std::string input_file_problem(const std::string& path);
+
 /// An integer property that a 32-bit int must hold (sizes, depths, counts): out of range is an
 /// error at `loc`, never a silent truncation (sample_count=2147483648 once rendered 1 spp).
 inline int checked_int32(std::int64_t value, const std::string& name, const FileLoc& loc) {

@@ -249,18 +249,11 @@ bool is_transform_operation_tag(std::string_view tag) {
            tag == "lookat";
 }
 
-/// The file's contents, or nullopt and the reason in `why`. Regular files only: reading a FIFO
-/// blocks until a writer appears, and a device such as /dev/zero never ends.
+/// The file's contents, or nullopt and the reason in `why`. Regular files only
+/// (input_file_problem).
 std::optional<std::string> read_text_file(const fs::path& path, std::string& why) {
-    std::error_code error;
-    if (!fs::exists(path, error)) {
-        why = "no such file";
-        return std::nullopt;
-    }
-    if (!fs::is_regular_file(path, error)) {
-        why = "not a regular file";
-        return std::nullopt;
-    }
+    why = input_file_problem(path.string());
+    if (!why.empty()) return std::nullopt;
     std::ifstream stream(path, std::ios::binary);
     std::ostringstream contents;
     if (stream) contents << stream.rdbuf();

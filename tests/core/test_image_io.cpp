@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -108,6 +109,26 @@ TEST_F(ImageIoTest, AFifoOrADeviceIsAnInputErrorNotAHang) {
             }
         }
     }
+}
+
+TEST_F(ImageIoTest, SameFileSeesThroughSpellingsAndLinks) {
+    // Outputs must not replace the scene, the input or each other however they are spelled:
+    // the render's and reconstruct's checks both ask same_file.
+    fs::create_directories(dir_ / "sub");
+    { std::ofstream(dir_ / "a.exr") << "a"; }
+    { std::ofstream(dir_ / "b.exr") << "b"; }
+    fs::create_symlink(dir_ / "a.exr", dir_ / "soft.exr");
+    fs::create_hard_link(dir_ / "a.exr", dir_ / "hard.exr");
+    const std::string a = (dir_ / "a.exr").string();
+    EXPECT_TRUE(same_file(a, a));
+    EXPECT_TRUE(same_file(a, (dir_ / "sub" / ".." / "." / "a.exr").string()));
+    EXPECT_TRUE(same_file(a, (dir_ / "soft.exr").string()));
+    EXPECT_TRUE(same_file(a, (dir_ / "hard.exr").string()));
+    EXPECT_FALSE(same_file(a, (dir_ / "b.exr").string()));
+    // Files that do not exist yet: by their resolved paths.
+    EXPECT_TRUE(same_file((dir_ / "new.exr").string(), (dir_ / "sub" / ".." / "new.exr").string()));
+    EXPECT_FALSE(same_file((dir_ / "new.exr").string(), (dir_ / "other.exr").string()));
+    EXPECT_FALSE(same_file(a, (dir_ / "new.exr").string()));
 }
 
 TEST(Srgb, TransferFunctionsAreInversesOfEachOther) {

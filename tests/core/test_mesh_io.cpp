@@ -1,7 +1,10 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -201,9 +204,80 @@ TEST(MeshIo, NanVertexInBinaryPlyIsAnInputErrorNamingTheVertex) {
     EXPECT_NE(message.find("non-finite"), std::string::npos) << message;
 }
 
+TEST(MeshIo, PlyPropertyBeforeAnyElementIsAnInputError) {
+    // Crashed CGAL's header reader (a property added to the last of no elements); found by the
+    // loader fuzzer as a comment line whose newline had become a vertical tab, swallowing the
+    // first element line.
+    const TempDir dir;
+    const std::string message =
+        load_error(dir.write("order.ply",
+                             "ply\nformat ascii 1.0\nproperty float x\nelement vertex 3\n"
+                             "property float y\nproperty float z\nelement face 1\n"
+                             "property list uchar int vertex_indices\nend_header\n"
+                             "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"));
+    EXPECT_NE(message.find("line 3"), std::string::npos) << message;
+}
+
+TEST(MeshIo, AnUnknownPlyElementWithoutPropertiesIsSkippedWhateverItsCount) {
+    // 2^40 items of nothing: the loader counted through them one by one (a hang, found by the
+    // loader fuzzer). They occupy no bytes, so the mesh after them loads.
+    const TempDir dir;
+    const auto start = std::chrono::steady_clock::now();
+    const TriangleMeshData mesh =
+        load_mesh(dir.write("empty_element.ply",
+                            "ply\nformat ascii 1.0\nelement junk 1099511627776\nelement vertex 3\n"
+                            "property float x\nproperty float y\nproperty float z\nelement face 1\n"
+                            "property list uchar int vertex_indices\nend_header\n"
+                            "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"),
+                  kSceneLoc);
+    EXPECT_EQ(mesh.triangle_count(), 1u);
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0);
+}
+
+/// Peak resident memory of this process so far, in bytes.
+double peak_rss_bytes() {
+    rusage usage{};
+    ::getrusage(RUSAGE_SELF, &usage);
+    return static_cast<double>(usage.ru_maxrss) * 1024.0;  // Linux: kilobytes
+}
+
+TEST(MeshIo, APlyListCountIsNeitherTrustedWithMemoryNorAllowedNegative) {
+    // CGAL's list reader resized its buffer to the count before reading an item: a negative
+    // count threw length_error (an "internal error"), a count of 2^31 - 1 one-byte indices
+    // zero-filled 2 GB. Both files are truncated, so both are input errors, and the second
+    // must not raise the peak memory by more than 256 MB (the fix allocates a few bytes; the
+    // bug 2 GB).
+    const TempDir dir;
+    const std::string header =
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+        "property float y\nproperty float z\nelement face 1\n";
+    const std::string vertices = "0 0 0\n1 0 0\n0 1 0\n";
+    load_error(dir.write(
+        "negative.ply",
+        header + "property list int int vertex_indices\nend_header\n" + vertices + "-1 0 1 2\n"));
+    const double peak_before = peak_rss_bytes();
+    load_error(dir.write("huge.ply", header +
+                                         "property list uint uchar vertex_indices\nend_header\n" +
+                                         vertices + "2147483647 0 1 2\n"));
+    EXPECT_LT(peak_rss_bytes() - peak_before, 256.0 * 1024 * 1024);
+}
+
 TEST(MeshIo, MissingFileIsAnInputError) {
     const TempDir dir;
     load_error((dir.path() / "missing.obj").string());
+}
+
+TEST(MeshIo, AFifoOrADeviceIsAnInputErrorNotAHang) {
+    // Reading a FIFO blocks until a writer opens it, and a device never ends; both must be
+    // refused as "not a regular file" (a FIFO used to be reported as "file not found").
+    const TempDir dir;
+    const fs::path fifo = dir.path() / "mesh.obj";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const std::string message = load_error(fifo.string());
+    EXPECT_NE(message.find("not a regular file"), std::string::npos) << message;
+    fs::create_symlink("/dev/zero", dir.path() / "zero.ply");
+    const std::string device = load_error((dir.path() / "zero.ply").string());
+    EXPECT_NE(device.find("not a regular file"), std::string::npos) << device;
 }
 
 TEST(MeshIo, FaceIndexOutOfRangeIsAnInputError) {

@@ -6,6 +6,8 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <functional>
 
 #include "core/render/render_path.h"
@@ -202,6 +204,87 @@ TEST(Gdmlt, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
     EXPECT_GT(test::mean_luminance(one.buffers.primal), 0.0);
 }
 
+TEST(Gdmlt, ABlackSceneEndsAfterTheBootstrapWithZeroLayersAndSaysSo) {
+    // A light that faces away from everything: f* = 0 everywhere (no primal, no difference),
+    // so no chain can start. The render must end after the bootstrap with finite zero layers
+    // (very direct light included: the camera sees the light's back) and say why.
+    const Scene scene = test::scene_from_xml(test::sensor_xml(8, 40.f, "0, 0, 4") + R"(
+        <shape type="rectangle"><transform name="to_world"><translate z="-1"/></transform></shape>
+        <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="180"/><translate z="-2"/></transform>
+            <emitter type="area"><rgb name="radiance" value="5"/></emitter></shape>)");
+    mlt::GdmltSettings s = small_gdmlt(3, 16);
+    s.bootstrap_samples = 1000;
+    s.very_direct_samples = 4;
+    ::testing::internal::CaptureStderr();
+    const mlt::GdmltOutput out = mlt::render_gdmlt(scene, s);
+    const std::string said = ::testing::internal::GetCapturedStderr();
+    EXPECT_NE(said.find("every bootstrap sample had a zero target"), std::string::npos) << said;
+    EXPECT_GE(out.stats.bootstrap_samples, 1000u);
+    EXPECT_EQ(out.stats.bootstrap_nonzero, 0u);
+    EXPECT_EQ(out.stats.b, 0.0);
+    EXPECT_EQ(out.stats.mutations, 0u);
+    for (const Image* layer :
+         {&out.buffers.primal, &out.buffers.dx, &out.buffers.dy, &out.buffers.very_direct}) {
+        ASSERT_FALSE(layer->pixels.empty());
+        for (float v : layer->pixels) EXPECT_EQ(v, 0.f);  // also false for NaN
+    }
+}
+
+TEST(Gdmlt, CancelledDuringTheBootstrapTheLayersAreTheBootstrapsUnbiasedMeans) {
+    // Ctrl-C while the bootstrap ran used to leave only the very direct light. The bootstrap's
+    // samples are independent and uniform, so their mean is an unbiased primal and unbiased
+    // differences. The progress callback, called after every bootstrap batch of 8192 samples,
+    // sets the cancel flag after the first: a deterministic cancel.
+    const Scene scene = test::scene_from_xml(test::cornell_box_xml(16));
+    mlt::GdmltSettings s = small_gdmlt(4, 64);
+    s.bootstrap_samples = 100000;
+    s.very_direct_samples = 1024;  // its noise negligible against the bootstrap's below
+    std::atomic<bool> cancel{false};
+    int calls = 0;
+    const mlt::GdmltOutput out = mlt::render_gdmlt(scene, s, &cancel, [&](double, double) {
+        ++calls;
+        cancel = true;
+    });
+    EXPECT_EQ(calls, 1);
+    EXPECT_TRUE(out.stats.interrupted);
+    EXPECT_TRUE(out.stats.bootstrap_estimate);
+    EXPECT_EQ(out.stats.mutations, 0u);
+    EXPECT_EQ(out.stats.bootstrap_samples, 8192u);
+    // Whole: 32 base paths per pixel, and every pixel of the box sees lit surfaces.
+    int lit = 0;
+    for (std::size_t p = 0; p < 256; ++p)
+        if (out.buffers.primal.pixels[3 * p] + out.buffers.primal.pixels[3 * p + 1] +
+                out.buffers.primal.pixels[3 * p + 2] >
+            0.f)
+            ++lit;
+    EXPECT_GE(lit, 243) << "at least 95% of the 256 pixels";
+    for (const Image* layer : {&out.buffers.dx, &out.buffers.dy}) {
+        double sum_abs = 0.0;
+        for (float v : layer->pixels) sum_abs += std::abs(v);
+        EXPECT_GT(sum_abs, 0.0);
+    }
+    // Right: primal + very direct against the path tracer at 256 spp (seed 1). The primal's
+    // mean is that of Y(C) over the 8192 samples, and 0 <= Y(C) <= f* (primal weight 1), so its
+    // standard error is at most sqrt(E[f*^2] / N) = sqrt(se_b^2 + b^2 / N) with b and se_b the
+    // bootstrap's; the reference's error variance is at most 1/8 of that (8x the samples). 4
+    // combined standard errors; the bound must be below 20% of the mean, else the test could
+    // not fail (f* is several times Y(C) here, so this bound is loose).
+    RenderSettings pt;
+    pt.spp = 256;
+    pt.seed = 1;
+    pt.path.max_depth = 8;
+    const double reference_mean = test::mean_luminance(render_path(scene, pt).image);
+    Image image = out.buffers.primal;
+    for (std::size_t i = 0; i < image.pixels.size(); ++i)
+        image.pixels[i] += out.buffers.very_direct.pixels[i];
+    const double n = static_cast<double>(out.stats.bootstrap_samples);
+    const double se_b = out.stats.b_bootstrap_standard_error, b = out.stats.b_bootstrap;
+    const double tolerance = 4.0 * std::sqrt((se_b * se_b + b * b / n) * (1.0 + 1.0 / 8.0));
+    EXPECT_NEAR(test::mean_luminance(image), reference_mean, tolerance);
+    EXPECT_LT(tolerance, 0.2 * reference_mean);
+    RecordProperty("relative_tolerance", std::to_string(tolerance / reference_mean));
+}
+
 TEST(Gdmlt, EveryShiftFailsAndTheImageIsStillFiniteAndRight) {
     // A diffuse sphere smaller than one pixel's footprint under a point light, nothing else:
     // every base path with light hits the sphere, and every shift to a neighbour pixel misses
@@ -221,6 +304,10 @@ TEST(Gdmlt, EveryShiftFailsAndTheImageIsStillFiniteAndRight) {
     s.bootstrap_samples = 200000;
     s.bootstrap_relative_error = 0.02;
     const mlt::GdmltOutput out = mlt::render_gdmlt(scene, s);
+    // The chains really ran through a mostly black primary sample space.
+    EXPECT_EQ(out.stats.mutations, 256u * 8u * 8u);
+    EXPECT_LT(out.stats.bootstrap_nonzero, out.stats.bootstrap_samples / 20);
+    EXPECT_EQ(out.stats.nonfinite_dropped, 0u);
     for (const Image* layer : {&out.buffers.primal, &out.buffers.dx, &out.buffers.dy})
         for (float v : layer->pixels) ASSERT_TRUE(std::isfinite(v));
     const manifold::ShiftCounters& shifts = out.stats.shifts;
