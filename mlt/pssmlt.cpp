@@ -110,15 +110,9 @@ class BidirectionalTarget final : public ChainTarget {
         if (!is_black(sample.pixel))
             state.splats.push_back({static_cast<std::uint32_t>(where.pixel), sample.pixel});
         for (const BdptSample::Splat& s : sample.splats) {
-            const int x =
-                std::clamp(static_cast<int>(std::floor(s.film_position.x())) - film.crop_offset_x,
-                           0, film.crop_width - 1);
-            const int y =
-                std::clamp(static_cast<int>(std::floor(s.film_position.y())) - film.crop_offset_y,
-                           0, film.crop_height - 1);
             const Rgb value = s.value * (inverse_choice / pixels_);
             target += static_cast<double>(luminance(value));
-            state.splats.push_back({static_cast<std::uint32_t>(y * film.crop_width + x), value});
+            state.splats.push_back({crop_pixel_index(film, s.film_position), value});
         }
         if (!std::isfinite(target)) {
             state.nonfinite = true;

@@ -2,6 +2,10 @@
 #pragma once
 // Pinhole perspective camera with Mitsuba's conventions: in camera space the camera looks
 // along +z, +y is up and +x is to the left, so raster x grows towards -x.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
 #include "core/geometry/ray.h"
 #include "core/math/transform.h"
 #include "core/math/types.h"
@@ -16,6 +20,16 @@ struct Film {
     int crop_width = 768;
     int crop_height = 576;
 };
+
+/// Row-major index in the crop window of the pixel containing `film_position` (full-film
+/// pixels), clamped to the window (a position on its far edge rounds into it).
+inline std::uint32_t crop_pixel_index(const Film& film, const Vec2f& film_position) {
+    const int x = std::clamp(static_cast<int>(std::floor(film_position.x())) - film.crop_offset_x,
+                             0, film.crop_width - 1);
+    const int y = std::clamp(static_cast<int>(std::floor(film_position.y())) - film.crop_offset_y,
+                             0, film.crop_height - 1);
+    return static_cast<std::uint32_t>(y * film.crop_width + x);
+}
 
 /// A world point as the camera sees it: where on the film it lands and the importance there
 /// (light tracing and BDPT connect light-subpath vertices to the camera through this).

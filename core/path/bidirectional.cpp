@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace gdmlt {
 
@@ -336,8 +337,13 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
     const int max_camera = only ? std::min(camera_block, settings.only_t) : camera_block;
     const int max_light = std::min(bounded ? settings.max_depth : kUnboundedVertices,
                                    only ? settings.only_s : kUnboundedVertices);
-    camera_subpath(scene, film_position, camera_stream, max_camera, camera_block,
-                   settings.rr_depth + 1, scratch.camera, counters);
+    // The camera subpath counts the pinhole as a vertex; rr_depth may be INT_MAX (no roulette,
+    // as MMLT asks): no overflow.
+    const int camera_rr_depth = settings.rr_depth < std::numeric_limits<int>::max()
+                                    ? settings.rr_depth + 1
+                                    : settings.rr_depth;
+    camera_subpath(scene, film_position, camera_stream, max_camera, camera_block, camera_rr_depth,
+                   scratch.camera, counters);
     light_subpath(scene, light_stream, max_light, settings.rr_depth, scratch.light, counters);
     ++counters.paths;
     const std::vector<BdptVertex>& camera = scratch.camera;

@@ -69,15 +69,8 @@ RenderOutput render_bdpt(const Scene& scene, const BdptRenderSettings& settings,
             camera_buffer.add(x, y, sample.pixel);
             std::vector<TileSplat>& list = tile_splats[static_cast<std::size_t>(
                 (y / kPixelPassTileSize) * tiles_x + x / kPixelPassTileSize)];
-            for (const BdptSample::Splat& s : sample.splats) {
-                const int px = std::clamp(
-                    static_cast<int>(std::floor(s.film_position.x())) - film.crop_offset_x, 0,
-                    width - 1);
-                const int py = std::clamp(
-                    static_cast<int>(std::floor(s.film_position.y())) - film.crop_offset_y, 0,
-                    height - 1);
-                list.push_back({static_cast<std::uint32_t>(py * width + px), s.value});
-            }
+            for (const BdptSample::Splat& s : sample.splats)
+                list.push_back({crop_pixel_index(film, s.film_position), s.value});
         },
         [&](int spp_completed) {
             merge_splats();

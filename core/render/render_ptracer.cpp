@@ -142,14 +142,7 @@ class LightTracer {
             ++out.nonfinite;
             return;
         }
-        const Film& film = camera_.film();
-        const int x =
-            std::clamp(static_cast<int>(std::floor(c.film_position.x())) - film.crop_offset_x, 0,
-                       film.crop_width - 1);
-        const int y =
-            std::clamp(static_cast<int>(std::floor(c.film_position.y())) - film.crop_offset_y, 0,
-                       film.crop_height - 1);
-        out.splats.push_back({static_cast<std::uint32_t>(y * film.crop_width + x), value});
+        out.splats.push_back({crop_pixel_index(camera_.film(), c.film_position), value});
     }
 
     const Scene& scene_;
