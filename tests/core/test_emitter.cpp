@@ -123,9 +123,11 @@ TEST(EnvmapEmitter, FollowsMitsubasLatLongOrientation) {
     }
 }
 
-std::string write_test_envmap() {
+/// Writes the test envmap to a temporary EXR named after `test` (ctest runs tests in parallel
+/// processes: a shared name let one test delete another's file).
+std::string write_test_envmap(const std::string& test) {
     const std::string path =
-        (std::filesystem::temp_directory_path() / "gdmlt_test_envmap.exr").string();
+        (std::filesystem::temp_directory_path() / ("gdmlt_test_envmap_" + test + ".exr")).string();
     Image image(32, 16, 3);
     const std::vector<Rgb> texels = test_envmap_texels(32, 16);
     for (int y = 0; y < 16; ++y)
@@ -140,7 +142,7 @@ TEST(SceneEmitters, EnvironmentSamplesCarryTheWholeEnvironmentAndItsDensity) {
     // With a constant and an envmap together, a direction sampled through either must carry
     // the sum of both radiances and the combined density, exactly what a BSDF-sampled ray
     // that escapes sees (environment(), pdf_environment_solid_angle()); MIS then agrees.
-    const std::string path = write_test_envmap();
+    const std::string path = write_test_envmap("environment_samples");
     const Scene scene = test::scene_from_xml(R"(
         <emitter type="envmap"><string name="filename" value=")" +
                                              path + R"("/><float name="scale" value="2"/>
@@ -345,7 +347,7 @@ TEST(EmittedRays, WeightsAverageToTheEmittedPower) {
     // wrong factor of pi or of the pmf fails) and the mean within 5 of them (seven tests, a
     // false alarm has probability 4e-6). A last scene with all bounded lights together checks
     // the emitter choice: the powers add.
-    const std::string envmap_path = write_test_envmap();
+    const std::string envmap_path = write_test_envmap("emitted_power");
     std::vector<EmitterCase> cases = emitter_cases(envmap_path);
     std::string all_bounded;
     double all_power = 0.0;
@@ -418,7 +420,7 @@ TEST(EmittedRays, DirectionsFollowTheirPdf) {
     // environment's importance sampling (the ray travels opposite to the sampled direction).
     // Seed 1, 200k samples, 64 x 64 sub-samples per bin (the envmap's density is steep near
     // its poles); Sidak over the four.
-    const std::string envmap_path = write_test_envmap();
+    const std::string envmap_path = write_test_envmap("emitted_directions");
     const std::vector<EmitterCase> cases = emitter_cases(envmap_path);
     test::Chi2Settings settings;
     settings.sub_samples = 64;
