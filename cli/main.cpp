@@ -463,6 +463,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     if (options.very_direct_samples) settings.very_direct_samples = *options.very_direct_samples;
     if (options.bootstrap_error) settings.bootstrap_relative_error = *options.bootstrap_error;
     if (options.primal_from_offsets) settings.primal_from_offsets = *options.primal_from_offsets;
+    if (options.bidirectional) settings.bidirectional = *options.bidirectional;
     settings.time_budget_s = remaining_budget(options.time_s, setup);
     settings.seed = options.seed.value_or(scene.sampler().seed);
     if (options.max_depth) settings.path.max_depth = *options.max_depth;
@@ -484,6 +485,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
                 {"neighbours", setup.config},
                 {"primal_weight", settings.primal_weight},
                 {"primal_from_offsets", settings.primal_from_offsets},
+                {"bidirectional", settings.bidirectional},
                 {"reconstruct", reconstruct::to_string(rc.method)},
                 {"alpha", rc.alpha},
                 {"coarse_radius", rc.coarse_radius},
@@ -717,7 +719,8 @@ int run_render(const RenderOptions& options) {
     stats["scene"] = {{"features", features_json(scene.features())}, {"counts", scene.counts()}};
     stats["machinery"] = {
         {"next_event_estimation", integrator != "ptracer"},
-        {"light_tracing", integrator == "ptracer" || integrator == "bdpt"},
+        {"light_tracing", integrator == "ptracer" || integrator == "bdpt" || integrator == "mmlt" ||
+                              config.value("bidirectional", false)},
         {"shift_mappings", gradient_domain},
         {"half_vector_or_replay_through_specular",
          gradient_domain && scene.features().specular_chains_possible},
@@ -849,7 +852,7 @@ int main(int argc, char** argv) {
     render_cmd->add_option("--direct-samples", render.direct_samples,
                            "PSSMLT: render direct illumination separately with N path-traced spp");
     render_cmd->add_option("--bidirectional", render.bidirectional,
-                           "PSSMLT: true = mutate bidirectional (BDPT) samples (false)");
+                           "PSSMLT, GDMLT: true = bidirectional (BDPT) samples (false)");
     render_cmd->add_option("--reconstruct", render.reconstruct_method,
                            "Gradient domain: l1 | l2 | cv (l1)");
     render_cmd

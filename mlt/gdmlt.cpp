@@ -33,7 +33,11 @@ class GradientTarget final : public ChainTarget {
         : scene_(scene), settings_(settings), neighbours_(neighbours) {}
 
     std::size_t slot_count() const override {
-        return neighbours_.pixel_count() + neighbours_.edges().size();
+        return light_slot(0) + (settings_.bidirectional ? neighbours_.pixel_count() : 0);
+    }
+    /// Bidirectional: after the edges, the light tracing image of each pixel.
+    std::size_t light_slot(std::size_t pixel) const {
+        return neighbours_.pixel_count() + neighbours_.edges().size() + pixel;
     }
     std::size_t density_slot_count() const override { return neighbours_.pixel_count(); }
 
@@ -51,12 +55,36 @@ class GradientTarget final : public ChainTarget {
             large.resize(links.size());
             estimates = large;
         }
-        const GradientSample g =
-            sample_gradients(scene_, where.film_position, stream, settings_.path, settings_.shift,
-                             links, estimates, counters.paths, counters.shifts);
+        GradientSample g;
+        thread_local BidirectionalGradientSample bidirectional;
+        bidirectional.light_splats.clear();
+        bool finite = true;
+        if (settings_.bidirectional) {
+            // Evaluations run concurrently on the chains' threads: one scratch per thread.
+            thread_local BidirectionalGradientScratch scratch;
+            bidirectional = sample_bidirectional_gradients(
+                scene_, where.film_position, stream, settings_.path, settings_.shift, links,
+                estimates, scratch, counters.paths, counters.shifts);
+            g.primal = bidirectional.primal;
+            finite = bidirectional.nonfinite == 0;
+        } else {
+            g = sample_gradients(scene_, where.film_position, stream, settings_.path,
+                                 settings_.shift, links, estimates, counters.paths,
+                                 counters.shifts);
+        }
 
-        bool finite = is_finite(g.primal);
+        finite = finite && is_finite(g.primal);
         double target = settings_.primal_weight * static_cast<double>(luminance(g.primal));
+        // Light tracing splats, per light path: a slot's integral over primary sample space
+        // times the pixel count is its pixel value, so each splat is divided by that count.
+        const Film& film = scene_.camera().film();
+        const float pixels =
+            static_cast<float>(film.crop_width) * static_cast<float>(film.crop_height);
+        for (BdptSample::Splat& splat : bidirectional.light_splats) {
+            splat.value /= pixels;
+            finite = finite && is_finite(splat.value);
+            target += settings_.primal_weight * static_cast<double>(luminance(splat.value));
+        }
         for (const LinkEstimate& e : estimates) {
             finite = finite && is_finite(e.base) && is_finite(e.offset);
             target += luminance_of_magnitude(e.difference());
@@ -96,6 +124,9 @@ class GradientTarget final : public ChainTarget {
             state.splats.push_back({slot(edge_slots + static_cast<std::size_t>(links[k].edge)),
                                     links[k].from_end ? d : Rgb(-d)});
         }
+        for (const BdptSample::Splat& splat : bidirectional.light_splats)
+            state.splats.push_back(
+                {slot(light_slot(crop_pixel_index(film, splat.film_position))), splat.value});
     }
 
   private:
@@ -177,6 +208,14 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
     for (std::size_t e = 0; e < edge_differences.size(); ++e)
         edge_differences[e] = chains.estimate[p_count + e] * pixels;
     store_edge_differences(neighbours, edge_differences, b);
+    if (settings.bidirectional) {
+        // Light tracing is not shifted: it joins the very direct layer, added after the solve.
+        const std::size_t light_slots = p_count + neighbours.edges().size();
+        for (std::size_t i = 0; i < p_count; ++i)
+            for (int c = 0; c < 3; ++c)
+                b.very_direct.pixels[3 * i + static_cast<std::size_t>(c)] +=
+                    static_cast<float>(chains.estimate[light_slots + i][c] * pixels);
+    }
     out.stats.total_s = seconds_since(start);
     return out;
 }
@@ -194,6 +233,7 @@ GdmltSettings gdmlt_settings_from_scene(const IntegratorSettings& integrator) {
     s.primal_weight = props.get_float("primal_weight", s.primal_weight);
     s.primal_from_offsets = props.get_bool("primal_from_offsets", s.primal_from_offsets);
     s.very_direct_samples = props.get_int32("very_direct_samples", s.very_direct_samples);
+    s.bidirectional = props.get_bool("bidirectional", s.bidirectional);
     props.check_all_read();
     validate_gdmlt_settings(s, integrator.desc.loc);
     return s;

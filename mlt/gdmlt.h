@@ -64,6 +64,11 @@ struct GdmltSettings : MarkovChainSettings {
     /// (medians 0.0066 vs 0.0065 and 0.198 vs 0.173): the reconstruction takes only the
     /// primal's coarse scales, where its noise averages out anyway. Off by default.
     bool primal_from_offsets = false;
+    /// Base paths are bidirectional samples (camera and light subpaths, every strategy, as
+    /// `pssmlt --bidirectional`), shifted as G-BDPT shifts them
+    /// (sample_bidirectional_gradients): light tracing is not shifted and joins the very direct
+    /// layer.
+    bool bidirectional = false;
     /// Samples per pixel of the very direct pass (camera rays only, about 2% of a 16 s render
     /// at 256^2; fewer leave visible anti-aliasing noise on the edges of lights).
     int very_direct_samples = 64;
@@ -84,7 +89,8 @@ struct GdmltStats : ChainStats {
 };
 
 struct GdmltOutput {
-    /// primal, dx, dy (+ extra edges for a non-lattice set), very_direct.
+    /// primal, dx, dy (+ extra edges for a non-lattice set), very_direct (with bidirectional
+    /// sampling also the light tracing strategies: everything not shifted).
     GradientBuffers buffers;
     /// Chain states per pixel relative to a uniform sampler (1 = as many as uniform).
     Image sample_density;

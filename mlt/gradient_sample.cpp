@@ -2,6 +2,7 @@
 #include "mlt/gradient_sample.h"
 
 #include <cmath>
+#include <limits>
 
 namespace gdmlt::mlt {
 namespace {
@@ -9,6 +10,36 @@ namespace {
 /// An emitter hit at the first vertex, or the environment seen through no vertex at all.
 bool is_very_direct(const manifold::Contribution& c) {
     return c.kind != manifold::Contribution::Kind::NextEvent && c.vertex == 0;
+}
+
+/// Counts what a sampler reads, so that the camera block can be skipped to its fixed end.
+class CountingStream final : public SampleStream {
+  public:
+    explicit CountingStream(SampleStream& inner) : inner_(inner) {}
+    float next_1d() override {
+        ++read_;
+        return inner_.next_1d();
+    }
+    void skip(std::size_t count) override {
+        read_ += count;
+        inner_.skip(count);
+    }
+    std::size_t read() const { return read_; }
+
+  private:
+    SampleStream& inner_;
+    std::size_t read_ = 0;
+};
+
+/// The base camera path cut after `vertex_count` vertices, its last one ending the path: the
+/// subpath strategy t = vertex_count + 1 sees. Its shift then decides nothing from vertices
+/// beyond the cut.
+Path truncated(const Path& path, int vertex_count) {
+    Path cut = path;
+    cut.vertices.resize(static_cast<std::size_t>(vertex_count));
+    cut.vertices.back().continued = false;
+    cut.escaped = false;
+    return cut;
 }
 
 }  // namespace
@@ -78,6 +109,146 @@ GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
             const auto weight_over_pdf = static_cast<float>(c.pdf / (a2 + b2 + shifted2));
             estimate.base += c.f * weight_over_pdf;
             estimate.offset += f_offset * weight_over_pdf;
+        }
+    }
+    return out;
+}
+
+BidirectionalGradientSample sample_bidirectional_gradients(
+    const Scene& scene, const Vec2f& film_position, SampleStream& stream,
+    const PathSamplerSettings& path_in, manifold::ShiftKind shift,
+    std::span<const NeighbourLink> links, std::span<LinkEstimate> estimates,
+    BidirectionalGradientScratch& scratch, PathCounters& counters,
+    manifold::ShiftCounters& shift_counters) {
+    PathSamplerSettings path = path_in;
+    if (path.max_depth < 0) path.max_depth = kUnboundedDepthCap;
+    path.rr_depth = std::numeric_limits<int>::max();
+    path.min_depth = 1;
+    const int max_depth = path.max_depth;
+
+    // 1. The two subpaths, in fixed blocks of numbers.
+    CountingStream counting(stream);
+    const Path base = sample_camera_path(scene, film_position, counting, path, counters);
+    stream.skip(static_cast<std::size_t>(kDimensionsPerBounce) *
+                    static_cast<std::size_t>(max_depth) -
+                counting.read());
+    std::vector<BdptVertex>& light = scratch.bdpt.light;
+    sample_light_subpath(scene, stream, max_depth, std::numeric_limits<int>::max(), light,
+                         counters);
+    camera_subpath_from_path(scene, base, static_cast<int>(base.vertices.size()),
+                             scratch.base_camera);
+
+    // 2. The base's strategies. Paths of one segment (very direct light) are left out.
+    BidirectionalGradientSample out;
+    scratch.terms.clear();
+    BdptConnectionInput in;
+    in.light = &light;
+    const auto n_camera = static_cast<int>(scratch.base_camera.size());
+    const auto n_light = static_cast<int>(light.size());
+    // The camera prefix of strategy t ends at path vertex t - 2; s = 1 uses its light sample.
+    const auto set_light_sample = [&](const Path& p, int t, BdptConnectionInput& input) {
+        input.light_sample = nullptr;
+        input.light_sample_visible = false;
+        const auto v = static_cast<std::size_t>(t - 2);
+        if (input.s == 1 && v < p.vertices.size()) {
+            input.light_sample = &p.vertices[v].light;
+            input.light_sample_visible = p.vertices[v].light_visible;
+        }
+    };
+    static const EmitterSample kNoLight{};
+    for (int t = 1; t <= n_camera; ++t) {
+        for (int s = 0; s <= n_light; ++s) {
+            const int segments = s + t - 1;
+            if (segments < 2 || segments > max_depth) continue;
+            in.camera = &scratch.base_camera;
+            in.s = s;
+            in.t = t;
+            set_light_sample(base, t, in);
+            // s = 1 without a sample at that vertex (delta BSDF, no light): no strategy.
+            if (s == 1 && t >= 2 && !in.light_sample) in.light_sample = &kNoLight;
+            const BdptConnection c = connect_bdpt(scene, in, scratch.bdpt, counters);
+            if (is_black(c.contribution)) continue;
+            const Rgb value = c.contribution * c.weight;
+            if (!is_finite(value)) {
+                ++out.nonfinite;
+                continue;
+            }
+            if (is_black(value)) continue;
+            if (t == 1) {
+                out.light_splats.push_back({c.film_position, value});
+            } else {
+                out.primal += value;
+                scratch.terms.push_back({s, t, value});
+            }
+        }
+    }
+
+    // 3. Per link, the offsets of every base term.
+    for (std::size_t k = 0; k < links.size(); ++k) {
+        LinkEstimate& estimate = estimates[k];
+        estimate = LinkEstimate{};
+        if (scratch.terms.empty()) continue;
+        const Vec2f offset = links[k].offset.cast<float>();
+        const manifold::ShiftResult full =
+            manifold::shift_path(scene, base, offset, shift, shift_counters);
+        camera_subpath_from_path(scene, full.offset, full.valid_vertices, scratch.offset_camera);
+        // A shift of a cut path, for the prefixes whose shift could depend on what follows
+        // them (below); computed once per prefix length.
+        int cut_t = -1;
+        manifold::ShiftResult cut_shift;
+        std::vector<BdptVertex> cut_camera;
+        for (const BidirectionalGradientScratch::Term& term : scratch.terms) {
+            const int t = term.t;
+            const auto last = static_cast<std::size_t>(t - 2);  // the prefix's last path vertex
+            // The full path's shift decides the prefix's vertices from the prefix alone, except
+            // where its last vertex is specular or left through a delta lobe (a smooth coat):
+            // there the unidirectional shift looks at what follows. Shift the cut path then.
+            const bool needs_cut = last < base.vertices.size() &&
+                                   (base.vertices[last].roughness == RoughnessClass::Delta ||
+                                    (base.vertices[last].continued && base.vertices[last].delta));
+            const manifold::ShiftResult* shifted = &full;
+            const std::vector<BdptVertex>* offset_camera = &scratch.offset_camera;
+            if (needs_cut) {
+                if (cut_t != t) {
+                    cut_shift = manifold::shift_path(scene, truncated(base, t - 1), offset, shift,
+                                                     shift_counters);
+                    camera_subpath_from_path(scene, cut_shift.offset, cut_shift.valid_vertices,
+                                             cut_camera);
+                    cut_t = t;
+                }
+                shifted = &cut_shift;
+                offset_camera = &cut_camera;
+            }
+            Rgb offset_value = Rgb::Zero();
+            double rho = 0.0;
+            if (static_cast<int>(offset_camera->size()) >= t) {
+                // p_st(y) |T'| / p_st(x): the camera directions leaving path vertices 0 .. t - 3
+                // (the pinhole's is a film translation: densities equal, Jacobian 1).
+                double log_rho = 0.0;
+                for (std::size_t j = 0; j + 3 <= static_cast<std::size_t>(t); ++j) {
+                    const PathVertex& xv = base.vertices[j];
+                    const PathVertex& yv = shifted->offset.vertices[j];
+                    log_rho += std::log(static_cast<double>(yv.pdf)) -
+                               std::log(static_cast<double>(xv.pdf)) +
+                               (j < shifted->log_jacobian.size() ? shifted->log_jacobian[j] : 0.0);
+                }
+                rho = std::exp(log_rho);
+                in.camera = offset_camera;
+                in.s = term.s;
+                in.t = t;
+                set_light_sample(shifted->offset, t, in);
+                if (term.s == 1 && !in.light_sample) in.light_sample = &kNoLight;
+                const BdptConnection c = connect_bdpt(scene, in, scratch.bdpt, counters);
+                if (!is_black(c.contribution) && std::isfinite(rho) && rho > 0.0) {
+                    offset_value = c.contribution * static_cast<float>(c.weight * rho);
+                    if (!is_finite(offset_value)) offset_value = Rgb::Zero();
+                }
+            }
+            // Power heuristic between the shift's two directions; a side that contributes
+            // nothing is estimated from the other alone.
+            const double weight = is_black(offset_value) ? 1.0 : 1.0 / (1.0 + rho * rho);
+            estimate.base += term.value * static_cast<float>(weight);
+            estimate.offset += offset_value * static_cast<float>(weight);
         }
     }
     return out;

@@ -15,8 +15,10 @@
 // shifted (G-PT and G-BDPT do the same): its edges are sharp and its differences would put halos
 // around every light. It is returned separately and added to the image after reconstruction.
 #include <span>
+#include <vector>
 
 #include "core/image/neighbour_set.h"
+#include "core/path/bidirectional.h"
 #include "core/path/path_sampler.h"
 #include "core/scene/scene.h"
 #include "manifold/shift.h"
@@ -55,5 +57,54 @@ GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
                                 manifold::ShiftKind shift, std::span<const NeighbourLink> links,
                                 std::span<LinkEstimate> estimates, PathCounters& counters,
                                 manifold::ShiftCounters& shift_counters);
+
+/// Bidirectional gradients (G-BDPT, Manzi et al. 2015, re-derived for primary sample space).
+/// A base sample is a camera subpath (recorded as a unidirectional Path, with its next-event
+/// samples) and a light subpath; strategy (s, t) connects their prefixes (core/path/
+/// bidirectional.h). The shift keeps every light-subpath number, so the light subpath is the
+/// same for base and offset, and shifts the camera subpath as the unidirectional shift does
+/// (manifold/shift.h); strategy (s, t)'s offset path is the shifted camera prefix connected to
+/// the same light prefix (for s = 1, the same point on the light). Per strategy the shift is a
+/// bijection between the two pixels' paths of that strategy, so
+///     I_st(j) - I_st(i) = E_x[ (w_st(y) f(y) |T'| - w_st(x) f(x)) / p_st(x) ],  y = T_st(x),
+/// with the strategy weights w_st of each path its own (the MIS weights over strategies of the
+/// offset path, from its own densities). Between the two directions of a shift the weight is
+/// the power heuristic of p_st(x) and p_st(y) |T'|, the camera subpath's densities (the light
+/// side is shared); a pair whose one side contributes nothing is estimated from the other side
+/// alone (weight 1 there, 0 here), which both sides decide the same way.
+///
+/// Light tracing (t = 1) lands on another pixel than the camera sample's and is not shifted: it
+/// is returned as splats, added to the image after reconstruction like very direct light
+/// (which, paths of one segment, is left out here: GDMLT renders it in its own pass).
+struct BidirectionalGradientSample {
+    /// Strategies with t >= 2 at the camera sample's pixel, paths of >= 2 segments.
+    Rgb primal = Rgb::Zero();
+    /// Light tracing (t = 1): per-light-path estimates at the film positions they land on.
+    std::vector<BdptSample::Splat> light_splats;
+    /// Strategy values that were not finite (dropped).
+    int nonfinite = 0;
+};
+
+/// Reused storage (no allocation per sample once warm).
+struct BidirectionalGradientScratch {
+    BdptScratch bdpt;  // its `light` holds the light subpath
+    std::vector<BdptVertex> base_camera, offset_camera;
+    struct Term {
+        int s = 0, t = 0;
+        Rgb value = Rgb::Zero();  // w_st(x) f(x) / p_st(x)
+    };
+    std::vector<Term> terms;
+};
+
+/// Samples a bidirectional base through `film_position`. Numbers: the camera subpath reads the
+/// unidirectional layout (kDimensionsPerBounce per vertex) in a block of max_depth vertices,
+/// then the light subpath its BDPT layout; no Russian roulette (max_depth -1 is capped at
+/// kUnboundedDepthCap). `estimates[k]` gets link k's halves.
+BidirectionalGradientSample sample_bidirectional_gradients(
+    const Scene& scene, const Vec2f& film_position, SampleStream& stream,
+    const PathSamplerSettings& path, manifold::ShiftKind shift,
+    std::span<const NeighbourLink> links, std::span<LinkEstimate> estimates,
+    BidirectionalGradientScratch& scratch, PathCounters& counters,
+    manifold::ShiftCounters& shift_counters);
 
 }  // namespace gdmlt::mlt

@@ -324,6 +324,166 @@ float mis_weight(const Scene& scene, const std::vector<BdptVertex>& light,
 
 }  // namespace
 
+BdptConnection connect_bdpt(const Scene& scene, const BdptConnectionInput& in, BdptScratch& scratch,
+                            PathCounters& counters) {
+    const std::vector<BdptVertex>& camera = *in.camera;
+    const std::vector<BdptVertex>& light = *in.light;
+    const int s = in.s, t = in.t;
+    const PerspectiveCamera& cam = scene.camera();
+    BdptConnection out;
+    Rgb contribution = Rgb::Zero();
+    BdptVertex sampled;
+    bool use_sampled = false;
+    if (s == 0) {
+        // The camera subpath reached a light by itself.
+        const BdptVertex& pt = camera[static_cast<std::size_t>(t - 1)];
+        if (pt.at_infinity)
+            contribution = pt.beta * scene.environment(-pt.travel);
+        else if (pt.is_surface() && pt.emitter >= 0)
+            contribution = pt.beta * scene.emitted(pt.si, pt.wo);
+    } else if (t == 1) {
+        // Light tracing: a light vertex seen by the pinhole, splatted where it lands.
+        const BdptVertex& qs = light[static_cast<std::size_t>(s - 1)];
+        if (qs.at_infinity || qs.delta_light || !connectible(scene, qs)) return out;
+        const CameraConnection c = cam.connect(qs.p);
+        if (!c.valid()) return out;
+        const Vec3f to_camera = -c.direction;
+        const float distance2 = c.distance * c.distance;
+        if (qs.is_surface()) {
+            contribution = qs.beta * vertex_f(scene, qs, to_camera, TransportMode::Importance) *
+                           (c.importance / distance2);
+        } else {
+            // An area light's point (diffuse emission, front side only).
+            const float cos_light = qs.n_geometric.dot(to_camera);
+            if (!(cos_light > 0.f)) return out;
+            contribution = qs.beta * (cos_light * c.importance / distance2);
+        }
+        if (is_black(contribution)) return out;
+        ++counters.shadow_rays;
+        if (scene.occluded(spawn_ray_to(qs.p, qs.n_geometric, cam.position(), Vec3f::Zero())))
+            return out;
+        sampled.kind = BdptVertex::Kind::Camera;
+        sampled.p = cam.position();
+        use_sampled = true;
+        out.film_position = c.film_position;
+    } else if (s == 1) {
+        // Next-event estimation: a point on a light, chosen as the light subpath chooses its
+        // origin (same emitter choice, uniform by area), or the one given.
+        const BdptVertex& pt = camera[static_cast<std::size_t>(t - 1)];
+        if (!pt.is_surface() || !connectible(scene, pt)) return out;
+        const EmitterSample es = in.light_sample
+                                     ? *in.light_sample
+                                     : scene.sample_emitter(pt.p, pt.u_light_select, pt.u_light);
+        if (!es.valid()) return out;
+        const Rgb f = vertex_f(scene, pt, es.wi, TransportMode::Radiance);
+        if (is_black(f)) return out;
+        contribution = pt.beta * f * es.radiance / es.pdf_solid_angle;
+        if (is_black(contribution)) return out;
+        if (in.light_sample) {
+            if (!in.light_sample_visible) return out;
+        } else {
+            const Ray shadow = std::isinf(es.distance)
+                                   ? spawn_ray(pt.p, pt.n_geometric, es.wi)
+                                   : spawn_ray_to(pt.p, pt.n_geometric, es.p, es.n_geometric);
+            ++counters.shadow_rays;
+            if (scene.occluded(shadow)) return out;
+        }
+        sampled.kind = BdptVertex::Kind::Light;
+        sampled.at_infinity = std::isinf(es.distance);
+        sampled.travel = -es.wi;
+        sampled.p = es.p;
+        sampled.n_geometric = es.n_geometric;
+        const Emitter& e = scene.emitters()[static_cast<std::size_t>(es.emitter)];
+        sampled.emitter = is_infinite(e) ? -1 : es.emitter;
+        sampled.delta_light = es.delta;
+        sampled.pdf_fwd = light_origin_pdf(scene, sampled);
+        use_sampled = true;
+    } else {
+        const BdptVertex& qs = light[static_cast<std::size_t>(s - 1)];
+        const BdptVertex& pt = camera[static_cast<std::size_t>(t - 1)];
+        if (!qs.is_surface() || !pt.is_surface() || !connectible(scene, qs) ||
+            !connectible(scene, pt))
+            return out;
+        const Vec3f d = qs.p - pt.p;
+        const float distance2 = d.squaredNorm();
+        if (!(distance2 > 0.f)) return out;
+        const Vec3f w = d / std::sqrt(distance2);
+        const Rgb f_camera = vertex_f(scene, pt, w, TransportMode::Radiance);
+        if (is_black(f_camera)) return out;
+        const Rgb f_light = vertex_f(scene, qs, -w, TransportMode::Importance);
+        // Both cosines are inside the f's (eval includes |cos| of its second direction).
+        contribution = qs.beta * f_light * f_camera * pt.beta / distance2;
+        if (is_black(contribution)) return out;
+        ++counters.shadow_rays;
+        if (scene.occluded(spawn_ray_to(pt.p, pt.n_geometric, qs.p, qs.n_geometric))) return out;
+    }
+    if (is_black(contribution)) return out;
+    out.contribution = contribution;
+    out.weight = in.mis
+                     ? mis_weight(scene, light, camera, use_sampled && t > 1 ? &sampled : nullptr,
+                                  use_sampled && t == 1 ? &sampled : nullptr, s, t,
+                                  in.power_heuristic, scratch.light_mis, scratch.camera_mis)
+                     : 1.f;
+    return out;
+}
+
+void sample_light_subpath(const Scene& scene, SampleStream& stream, int max_vertices, int rr_depth,
+                          std::vector<BdptVertex>& path, PathCounters& counters) {
+    light_subpath(scene, stream, max_vertices, rr_depth, path, counters);
+}
+
+void camera_subpath_from_path(const Scene& scene, const Path& path, int vertex_count,
+                              std::vector<BdptVertex>& out) {
+    out.clear();
+    const auto n = static_cast<std::size_t>(
+        std::clamp(vertex_count, 0, static_cast<int>(path.vertices.size())));
+    BdptVertex c;
+    c.kind = BdptVertex::Kind::Camera;
+    c.p = path.camera_position;
+    c.beta = Rgb::Ones();
+    out.push_back(c);
+    // The direction leaving the previous vertex: its f / pdf for the throughput, its density
+    // (0 after a delta lobe) for the next vertex's pdf_fwd. The pinhole's direction has the
+    // camera's density and throughput 1 (W / p of the film position).
+    Rgb beta = Rgb::Ones();
+    float pdf_direction = scene.camera().pdf_direction_solid_angle(path.camera_direction);
+    for (std::size_t k = 0; k < n; ++k) {
+        const PathVertex& pv = path.vertices[k];
+        BdptVertex v;
+        v.kind = BdptVertex::Kind::Surface;
+        v.si = pv.si;
+        v.p = pv.si.p;
+        v.n_geometric = pv.si.n_geometric;
+        v.wo = (out.back().p - pv.si.p).normalized();
+        v.beta = beta;
+        v.emitter = scene.shapes()[static_cast<std::size_t>(pv.si.shape)].emitter();
+        v.pdf_fwd = to_area(pdf_direction, out.back(), v);
+        v.delta = pv.continued && pv.delta;
+        out.push_back(v);
+        if (!pv.continued) break;
+        // The vertex before, as the reverse walk from this one would generate it.
+        if (!pv.delta) {
+            const BdptVertex& here = out.back();
+            const float pdf_rev = scene.bsdf_of(pv.si).pdf(
+                pv.si.uv, pv.si.shading.to_local(pv.wi_world), pv.si.shading.to_local(here.wo));
+            BdptVertex& prev = out[out.size() - 2];
+            prev.pdf_rev = to_area(pdf_rev, here, prev);
+        }
+        beta *= pv.f / pv.pdf;
+        pdf_direction = pv.delta ? 0.f : pv.pdf;
+    }
+    const bool all_continued = n == 0 || path.vertices[n - 1].continued;
+    if (n == path.vertices.size() && path.escaped && scene.has_environment() && all_continued) {
+        BdptVertex v;
+        v.kind = BdptVertex::Kind::Light;
+        v.at_infinity = true;
+        v.travel = -(n == 0 ? path.camera_direction : path.escape_direction);
+        v.beta = beta;
+        v.pdf_fwd = pdf_direction;
+        out.push_back(v);
+    }
+}
+
 void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& camera_stream,
                  SampleStream& light_stream, const BdptSettings& settings, BdptScratch& scratch,
                  BdptSample& out, PathCounters& counters) {
@@ -346,14 +506,13 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
                    scratch.camera, counters);
     light_subpath(scene, light_stream, max_light, settings.rr_depth, scratch.light, counters);
     ++counters.paths;
-    const std::vector<BdptVertex>& camera = scratch.camera;
-    const std::vector<BdptVertex>& light = scratch.light;
-    const PerspectiveCamera& cam = scene.camera();
-    std::vector<BdptMisEntry>& light_mis = scratch.light_mis;
-    std::vector<BdptMisEntry>& camera_mis = scratch.camera_mis;
-
-    const int n_camera = static_cast<int>(camera.size());
-    const int n_light = static_cast<int>(light.size());
+    BdptConnectionInput in;
+    in.camera = &scratch.camera;
+    in.light = &scratch.light;
+    in.mis = !only || settings.weight_only;
+    in.power_heuristic = settings.power_heuristic;
+    const int n_camera = static_cast<int>(scratch.camera.size());
+    const int n_light = static_cast<int>(scratch.light.size());
     for (int t = 1; t <= n_camera; ++t) {
         for (int s = 0; s <= n_light; ++s) {
             const int segments = s + t - 1;
@@ -362,107 +521,17 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
             if (only && (s != settings.only_s || t != settings.only_t)) continue;
             // Emitters seen directly: strategies (0, 2) and (1, 1).
             if (settings.hide_emitters && segments == 1) continue;
-
-            Rgb contribution = Rgb::Zero();
-            BdptVertex sampled;
-            bool use_sampled = false;
-            bool splat = false;
-            Vec2f splat_position = Vec2f::Zero();
-            if (s == 0) {
-                // The camera subpath reached a light by itself.
-                const BdptVertex& pt = camera[static_cast<std::size_t>(t - 1)];
-                if (pt.at_infinity)
-                    contribution = pt.beta * scene.environment(-pt.travel);
-                else if (pt.is_surface() && pt.emitter >= 0)
-                    contribution = pt.beta * scene.emitted(pt.si, pt.wo);
-            } else if (t == 1) {
-                // Light tracing: a light vertex seen by the pinhole, splatted where it lands.
-                const BdptVertex& qs = light[static_cast<std::size_t>(s - 1)];
-                if (qs.at_infinity || qs.delta_light || !connectible(scene, qs)) continue;
-                const CameraConnection c = cam.connect(qs.p);
-                if (!c.valid()) continue;
-                const Vec3f to_camera = -c.direction;
-                const float distance2 = c.distance * c.distance;
-                if (qs.is_surface()) {
-                    contribution = qs.beta *
-                                   vertex_f(scene, qs, to_camera, TransportMode::Importance) *
-                                   (c.importance / distance2);
-                } else {
-                    // An area light's point (diffuse emission, front side only).
-                    const float cos_light = qs.n_geometric.dot(to_camera);
-                    if (!(cos_light > 0.f)) continue;
-                    contribution = qs.beta * (cos_light * c.importance / distance2);
-                }
-                if (is_black(contribution)) continue;
-                ++counters.shadow_rays;
-                if (scene.occluded(
-                        spawn_ray_to(qs.p, qs.n_geometric, cam.position(), Vec3f::Zero())))
-                    continue;
-                sampled.kind = BdptVertex::Kind::Camera;
-                sampled.p = cam.position();
-                use_sampled = true;
-                splat = true;
-                splat_position = c.film_position;
-            } else if (s == 1) {
-                // Next-event estimation: a fresh point on a light, chosen as the light subpath
-                // chooses its origin (same emitter choice, uniform by area).
-                const BdptVertex& pt = camera[static_cast<std::size_t>(t - 1)];
-                if (!pt.is_surface() || !connectible(scene, pt)) continue;
-                const EmitterSample es = scene.sample_emitter(pt.p, pt.u_light_select, pt.u_light);
-                if (!es.valid()) continue;
-                const Rgb f = vertex_f(scene, pt, es.wi, TransportMode::Radiance);
-                if (is_black(f)) continue;
-                contribution = pt.beta * f * es.radiance / es.pdf_solid_angle;
-                if (is_black(contribution)) continue;
-                const Ray shadow = std::isinf(es.distance)
-                                       ? spawn_ray(pt.p, pt.n_geometric, es.wi)
-                                       : spawn_ray_to(pt.p, pt.n_geometric, es.p, es.n_geometric);
-                ++counters.shadow_rays;
-                if (scene.occluded(shadow)) continue;
-                sampled.kind = BdptVertex::Kind::Light;
-                sampled.at_infinity = std::isinf(es.distance);
-                sampled.travel = -es.wi;
-                sampled.p = es.p;
-                sampled.n_geometric = es.n_geometric;
-                const Emitter& e = scene.emitters()[static_cast<std::size_t>(es.emitter)];
-                sampled.emitter = is_infinite(e) ? -1 : es.emitter;
-                sampled.delta_light = es.delta;
-                sampled.pdf_fwd = light_origin_pdf(scene, sampled);
-                use_sampled = true;
-            } else {
-                const BdptVertex& qs = light[static_cast<std::size_t>(s - 1)];
-                const BdptVertex& pt = camera[static_cast<std::size_t>(t - 1)];
-                if (!qs.is_surface() || !pt.is_surface() || !connectible(scene, qs) ||
-                    !connectible(scene, pt))
-                    continue;
-                const Vec3f d = qs.p - pt.p;
-                const float distance2 = d.squaredNorm();
-                if (!(distance2 > 0.f)) continue;
-                const Vec3f w = d / std::sqrt(distance2);
-                const Rgb f_camera = vertex_f(scene, pt, w, TransportMode::Radiance);
-                if (is_black(f_camera)) continue;
-                const Rgb f_light = vertex_f(scene, qs, -w, TransportMode::Importance);
-                // Both cosines are inside the f's (eval includes |cos| of its second direction).
-                contribution = qs.beta * f_light * f_camera * pt.beta / distance2;
-                if (is_black(contribution)) continue;
-                ++counters.shadow_rays;
-                if (scene.occluded(spawn_ray_to(pt.p, pt.n_geometric, qs.p, qs.n_geometric)))
-                    continue;
-            }
-            if (is_black(contribution)) continue;
-            const float weight =
-                only && !settings.weight_only
-                    ? 1.f
-                    : mis_weight(scene, light, camera, use_sampled && t > 1 ? &sampled : nullptr,
-                                 use_sampled && t == 1 ? &sampled : nullptr, s, t,
-                                 settings.power_heuristic, light_mis, camera_mis);
-            const Rgb value = contribution * weight;
+            in.s = s;
+            in.t = t;
+            const BdptConnection c = connect_bdpt(scene, in, scratch, counters);
+            if (is_black(c.contribution)) continue;
+            const Rgb value = c.contribution * c.weight;
             if (!is_finite(value)) {
                 ++out.nonfinite;
                 continue;
             }
-            if (splat)
-                out.splats.push_back({splat_position, value});
+            if (t == 1)
+                out.splats.push_back({c.film_position, value});
             else
                 out.pixel += value;
         }

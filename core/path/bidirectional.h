@@ -22,6 +22,7 @@
 // may be the same stream.
 #include <vector>
 
+#include "core/path/path.h"
 #include "core/path/path_sampler.h"
 #include "core/sampling/sample_stream.h"
 #include "core/scene/scene.h"
@@ -105,6 +106,52 @@ struct BdptScratch {
 /// brighter than the radiance a camera path would compute. `wo` points back along the light
 /// subpath, `wi` onwards (both world, unit). 1 where shading and geometric normals agree.
 float adjoint_shading_correction(const SurfaceInteraction& si, const Vec3f& wo, const Vec3f& wi);
+
+/// One strategy's value for given subpaths (see BdptConnectionInput).
+struct BdptConnection {
+    /// The unweighted estimate f / p of the path strategy (s, t) made; zero when the strategy
+    /// has no path here (a delta or hidden end, an occluded or black connection).
+    Rgb contribution = Rgb::Zero();
+    /// The MIS weight over all strategies for the same path (only when `contribution` is not
+    /// black and it was asked for).
+    float weight = 0.f;
+    /// t = 1: where on the film (full-film pixels) the light subpath's vertex is seen.
+    Vec2f film_position = Vec2f::Zero();
+};
+
+/// What strategy (s, t) connects: the first t vertices of `camera` (vertex 0 the pinhole) and
+/// the first s of `light` (vertex 0 on an emitter). For s = 1 the light vertex is a sample
+/// taken from camera vertex t - 1: `light_sample` (with its visibility) when given, else drawn
+/// with the numbers that vertex carries (BdptVertex::u_light_select, u_light).
+struct BdptConnectionInput {
+    const std::vector<BdptVertex>* camera = nullptr;
+    const std::vector<BdptVertex>* light = nullptr;
+    int s = 0, t = 0;
+    const EmitterSample* light_sample = nullptr;
+    bool light_sample_visible = false;
+    bool mis = true;  // compute the MIS weight (else 1)
+    bool power_heuristic = true;
+};
+
+/// Evaluates one strategy: the connection of sample_bdpt, shared with the gradient-domain
+/// samplers that connect shifted camera subpaths to the same light subpath.
+BdptConnection connect_bdpt(const Scene& scene, const BdptConnectionInput& in, BdptScratch& scratch,
+                            PathCounters& counters);
+
+/// The light subpath of sample_bdpt on its own (its kBdptEmissionDimensions +
+/// kBdptLightDimensions per vertex layout), at most `max_vertices` vertices, roulette from
+/// `rr_depth` vertices on (INT_MAX: none).
+void sample_light_subpath(const Scene& scene, SampleStream& stream, int max_vertices, int rr_depth,
+                          std::vector<BdptVertex>& path, PathCounters& counters);
+
+/// The camera subpath of a recorded unidirectional path (path.h) as BDPT vertices: the pinhole,
+/// then the first `vertex_count` of its surface vertices (and, if they are all of them and the
+/// path escaped, the environment as a light vertex at infinity), with the same throughputs,
+/// forward and reverse area densities and delta flags sample_bdpt would give a camera subpath
+/// that took the same directions. Shifted paths (manifold/shift.h) convert the same way, so a
+/// shifted camera subpath connects to a light subpath exactly as a sampled one does.
+void camera_subpath_from_path(const Scene& scene, const Path& path, int vertex_count,
+                              std::vector<BdptVertex>& out);
 
 /// One bidirectional sample through `film_position` (full-film pixels).
 void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& camera_stream,

@@ -22,10 +22,12 @@ namespace gdmlt {
 namespace {
 
 /// A low-poly sphere (12 x 8 lat-long quads) with per-vertex normals: its shading normals
-/// differ from the facets' by up to ~20 degrees.
-std::string write_smooth_sphere_obj() {
+/// differ from the facets' by up to ~20 degrees. Written under a name per test: ctest runs the
+/// tests in parallel processes, and one would delete the file another is reading.
+std::string write_smooth_sphere_obj(const std::string& test) {
     const std::string path =
-        (std::filesystem::temp_directory_path() / "gdmlt_test_smooth_sphere.obj").string();
+        (std::filesystem::temp_directory_path() / ("gdmlt_test_smooth_sphere_" + test + ".obj"))
+            .string();
     std::ofstream f(path);
     const int nu = 12, nv = 8;
     for (int j = 0; j <= nv; ++j)
@@ -143,7 +145,7 @@ TEST(Ptracer, ConvergesToThePathTracerWithDeltaLightsEnvironmentAndShadingNormal
     // camera rays, and lighting the scene through light paths from the disk at infinity), and
     // a smooth-shaded sphere. Seeds 100-107, 8 x 512 of each; relMSE measured 0.0012 (the
     // spot's hot spot and the point light's falloff are noisy for both), bound 0.004.
-    const std::string obj = write_smooth_sphere_obj();
+    const std::string obj = write_smooth_sphere_obj("ptracer_lights");
     const Scene scene = test::scene_from_xml(open_scene_xml(obj));
     std::filesystem::remove(obj);
     expect_agreement(scene, 512, 512, 0.004);
@@ -155,7 +157,7 @@ TEST(Ptracer, SmoothShadingNormalsGetTheAdjointCorrection) {
     // weights each vertex by |wi.n_s| |wo.n_g| instead of |wo.n_s| |wi.n_g|, 5-20% off across
     // the facets. Seeds 100-107, 8 x 1024 light paths and 8 x 256 path samples per pixel at
     // 32^2; relMSE measured 9e-5, and 0.022 without the correction; bound 0.001.
-    const std::string obj = write_smooth_sphere_obj();
+    const std::string obj = write_smooth_sphere_obj("ptracer_adjoint");
     const Scene scene = test::scene_from_xml(test::sensor_xml(32, 30.f, "0, 0.5, 3.5") + R"(
         <shape type="obj"><string name="filename" value=")" +
                                              obj + R"("/>
@@ -259,7 +261,7 @@ TEST(Bdpt, ConvergesToThePathTracerWithSmoothAndRoughGlass) {
 
 TEST(Bdpt, ConvergesToThePathTracerWithDeltaLightsEnvironmentAndShadingNormals) {
     // Seeds 100-107, 8 x 256 of each; relMSE measured 9e-4, bound 0.004.
-    const std::string obj = write_smooth_sphere_obj();
+    const std::string obj = write_smooth_sphere_obj("bdpt_lights");
     const Scene scene = test::scene_from_xml(open_scene_xml(obj));
     std::filesystem::remove(obj);
     expect_agreement(scene, 256, 256, 0.004, Method::Bdpt);

@@ -1,7 +1,12 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "tests/support/pixel_difference.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
+#include <limits>
+
+#include "core/path/bidirectional.h"
 
 namespace gdmlt::test {
 namespace {
@@ -58,6 +63,62 @@ MeanEstimate gdpt_pixel_difference(const Scene& scene, const mlt::GdptSettings& 
             d += side == 0 ? difference : -difference;
         }
         acc.add(d);
+    }
+    return acc.estimate();
+}
+
+BidirectionalDifference bidirectional_pixel_difference(const Scene& scene,
+                                                       manifold::ShiftKind shift, int xi, int y,
+                                                       int samples, std::uint64_t seed,
+                                                       manifold::ShiftCounters& shifts,
+                                                       const Vec2i& offset) {
+    PathCounters counters;
+    PathSamplerSettings path;
+    path.max_depth = 8;
+    mlt::BidirectionalGradientScratch scratch;
+    Accumulator difference, primal[2];
+    for (int s = 0; s < samples; ++s) {
+        double d = 0.0;
+        for (int side = 0; side < 2; ++side) {
+            IndependentStream stream(derive_stream(seed, static_cast<std::uint64_t>(side),
+                                                   static_cast<std::uint64_t>(s)));
+            const Vec2f jitter = stream.next_2d();
+            const NeighbourLink link{side == 0 ? offset : Vec2i(-offset), 0, side == 0};
+            const Vec2i pixel = Vec2i(xi, y) + (side == 0 ? Vec2i::Zero() : offset);
+            mlt::LinkEstimate estimate;
+            const mlt::BidirectionalGradientSample g = mlt::sample_bidirectional_gradients(
+                scene,
+                Vec2f(static_cast<float>(pixel.x()) + jitter.x(),
+                      static_cast<float>(pixel.y()) + jitter.y()),
+                stream, path, shift, {&link, 1}, {&estimate, 1}, scratch, counters, shifts);
+            EXPECT_EQ(g.nonfinite, 0);
+            const float value = luminance(estimate.difference());
+            d += side == 0 ? value : -value;
+            primal[side].add(luminance(g.primal));
+        }
+        difference.add(d);
+    }
+    return {difference.estimate(), primal[0].estimate(), primal[1].estimate()};
+}
+
+MeanEstimate bdpt_camera_strategies_pixel(const Scene& scene, int x, int y, int samples,
+                                          std::uint64_t seed) {
+    PathCounters counters;
+    BdptSettings settings;
+    settings.max_depth = 8;
+    settings.rr_depth = std::numeric_limits<int>::max();
+    settings.hide_emitters = true;  // paths of one segment: very direct light
+    BdptScratch scratch;
+    BdptSample sample;
+    Accumulator acc;
+    for (int s = 0; s < samples; ++s) {
+        IndependentStream stream(
+            derive_stream(seed, static_cast<std::uint64_t>(x), static_cast<std::uint64_t>(s)));
+        const Vec2f jitter = stream.next_2d();
+        sample_bdpt(scene,
+                    Vec2f(static_cast<float>(x) + jitter.x(), static_cast<float>(y) + jitter.y()),
+                    stream, stream, settings, scratch, sample, counters);
+        acc.add(luminance(sample.pixel));
     }
     return acc.estimate();
 }

@@ -27,6 +27,24 @@ MeanEstimate gdpt_pixel_difference(const Scene& scene, const mlt::GdptSettings& 
                                    manifold::ShiftCounters& shifts,
                                    const Vec2i& offset = Vec2i(1, 0));
 
+/// Bidirectional GDMLT's estimator (mlt::sample_bidirectional_gradients, max_depth 8) of
+/// luminance I_b((xi, y) + offset) - I_b(xi, y), combined from both ends as in
+/// gdpt_pixel_difference; I_b is the image of its camera strategies (t >= 2, paths of >= 2
+/// segments). Also the mean of its primal (I_b) at each end. Streams (seed, side, iteration).
+struct BidirectionalDifference {
+    MeanEstimate difference, primal_here, primal_there;
+};
+BidirectionalDifference bidirectional_pixel_difference(const Scene& scene,
+                                                       manifold::ShiftKind shift, int xi, int y,
+                                                       int samples, std::uint64_t seed,
+                                                       manifold::ShiftCounters& shifts,
+                                                       const Vec2i& offset = Vec2i(1, 0));
+
+/// BDPT's (sample_bdpt, max_depth 8, no roulette) estimate of I_b at pixel (x, y): its camera
+/// strategies without very direct light. Streams (seed, x, iteration).
+MeanEstimate bdpt_camera_strategies_pixel(const Scene& scene, int x, int y, int samples,
+                                          std::uint64_t seed);
+
 /// The path tracer's luminance of pixel (x, y). Streams (seed, x, iteration).
 MeanEstimate path_traced_pixel(const Scene& scene, const PathSamplerSettings& settings, int x,
                                int y, int samples, std::uint64_t seed);
