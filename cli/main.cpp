@@ -74,6 +74,7 @@ struct RenderOptions {
     std::optional<double> mpp;
     std::optional<int> direct_samples;
     std::optional<bool> bidirectional;
+    std::optional<bool> shift_light_tracing;
     // Gradient-domain knobs.
     std::string reconstruct_method;
     std::optional<double> alpha;
@@ -464,6 +465,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     if (options.bootstrap_error) settings.bootstrap_relative_error = *options.bootstrap_error;
     if (options.primal_from_offsets) settings.primal_from_offsets = *options.primal_from_offsets;
     if (options.bidirectional) settings.bidirectional = *options.bidirectional;
+    if (options.shift_light_tracing) settings.shift_light_tracing = *options.shift_light_tracing;
     settings.time_budget_s = remaining_budget(options.time_s, setup);
     settings.seed = options.seed.value_or(scene.sampler().seed);
     if (options.max_depth) settings.path.max_depth = *options.max_depth;
@@ -486,6 +488,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
                 {"primal_weight", settings.primal_weight},
                 {"primal_from_offsets", settings.primal_from_offsets},
                 {"bidirectional", settings.bidirectional},
+                {"shift_light_tracing", settings.shift_light_tracing},
                 {"reconstruct", reconstruct::to_string(rc.method)},
                 {"alpha", rc.alpha},
                 {"coarse_radius", rc.coarse_radius},
@@ -851,6 +854,8 @@ int main(int argc, char** argv) {
         ->check(finite_number());
     render_cmd->add_option("--direct-samples", render.direct_samples,
                            "PSSMLT: render direct illumination separately with N path-traced spp");
+    render_cmd->add_option("--shift-light-tracing", render.shift_light_tracing,
+                           "GDMLT with --bidirectional: shift light tracing too (false)");
     render_cmd->add_option("--bidirectional", render.bidirectional,
                            "PSSMLT, GDMLT: true = bidirectional (BDPT) samples (false)");
     render_cmd->add_option("--reconstruct", render.reconstruct_method,

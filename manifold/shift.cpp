@@ -40,6 +40,8 @@ const char* to_string(ShiftStatus status) {
             return "manifold_degenerate_chain";
         case ShiftStatus::ManifoldNotReversible:
             return "manifold_not_reversible";
+        case ShiftStatus::NotReplayable:
+            return "not_replayable";
         case ShiftStatus::Count:
             break;
     }
@@ -489,10 +491,15 @@ ShiftResult shift_path(const Scene& scene, const Path& base, const Vec2f& film_o
         // For a delta lobe this copies the half vector (mirror or refraction of the offset's own
         // incident direction; Jacobian 1 for the Dirac measure); for a non-delta lobe the map of
         // random numbers to directions gives the Jacobian p_x(w_x) / p_y(w_y).
+        // A path without numbers (a light subpath) keeps a delta vertex's lobe by its kind
+        // (mirror or refraction, as the manifold walk does); anything else would be a replay.
+        if (!base.replayable && !(x.delta && x.roughness == RoughnessClass::Delta))
+            return finish(ShiftStatus::NotReplayable, static_cast<int>(k + 1));
+        const float u_lobe = base.replayable ? x.u_lobe : (x.transmission ? 1.f : 0.f);
         const Bsdf& bsdf = scene.bsdf_of(yk.si);
         const Vec3f wo_world = (from - yk.si.p).normalized();
         const BsdfSample bs =
-            bsdf.sample(yk.si.uv, yk.si.shading.to_local(wo_world), x.u_lobe, x.u_direction);
+            bsdf.sample(yk.si.uv, yk.si.shading.to_local(wo_world), u_lobe, x.u_direction);
         if (!bs.valid()) {
             return finish(
                 x.transmission ? ShiftStatus::TotalInternalReflection : ShiftStatus::LobeChanged,

@@ -45,6 +45,7 @@ enum class ShiftStatus : int {
     ManifoldSingularMatrix,
     ManifoldDegenerateChain,
     ManifoldNotReversible,  // walking the offset chain back did not return the base's chain
+    NotReplayable,          // a path without random numbers (Path::replayable) would need a replay
     Count
 };
 const char* to_string(ShiftStatus status);

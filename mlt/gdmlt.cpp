@@ -56,15 +56,17 @@ class GradientTarget final : public ChainTarget {
             estimates = large;
         }
         GradientSample g;
+        // Evaluations run concurrently on the chains' threads: one scratch per thread.
         thread_local BidirectionalGradientSample bidirectional;
         bidirectional.light_splats.clear();
+        bidirectional.light_terms.clear();
         bool finite = true;
         if (settings_.bidirectional) {
-            // Evaluations run concurrently on the chains' threads: one scratch per thread.
             thread_local BidirectionalGradientScratch scratch;
-            bidirectional = sample_bidirectional_gradients(
-                scene_, where.film_position, stream, settings_.path, settings_.shift, links,
-                estimates, scratch, counters.paths, counters.shifts);
+            sample_bidirectional_gradients(scene_, where.film_position, stream, settings_.path,
+                                           settings_.shift, links, estimates,
+                                           settings_.shift_light_tracing ? &neighbours_ : nullptr,
+                                           scratch, bidirectional, counters.paths, counters.shifts);
             g.primal = bidirectional.primal;
             finite = bidirectional.nonfinite == 0;
         } else {
@@ -75,8 +77,12 @@ class GradientTarget final : public ChainTarget {
 
         finite = finite && is_finite(g.primal);
         double target = settings_.primal_weight * static_cast<double>(luminance(g.primal));
-        // Light tracing splats, per light path: a slot's integral over primary sample space
-        // times the pixel count is its pixel value, so each splat is divided by that count.
+        for (const LinkEstimate& e : estimates) {
+            finite = finite && is_finite(e.base) && is_finite(e.offset);
+            target += luminance_of_magnitude(e.difference());
+        }
+        // Light tracing, per light path: a slot's integral over primary sample space times the
+        // pixel count is its pixel value, so each of its records is divided by that count.
         const Film& film = scene_.camera().film();
         const float pixels =
             static_cast<float>(film.crop_width) * static_cast<float>(film.crop_height);
@@ -85,9 +91,17 @@ class GradientTarget final : public ChainTarget {
             finite = finite && is_finite(splat.value);
             target += settings_.primal_weight * static_cast<double>(luminance(splat.value));
         }
-        for (const LinkEstimate& e : estimates) {
-            finite = finite && is_finite(e.base) && is_finite(e.offset);
-            target += luminance_of_magnitude(e.difference());
+        for (BidirectionalGradientSample::LightTerm& term : bidirectional.light_terms) {
+            term.primal /= pixels;
+            finite = finite && is_finite(term.primal);
+            target += settings_.primal_weight * static_cast<double>(luminance(term.primal));
+            for (std::uint32_t k = 0; k < term.count; ++k) {
+                LinkEstimate& e = bidirectional.light_estimates[term.first + k];
+                e.base /= pixels;
+                e.offset /= pixels;
+                finite = finite && is_finite(e.base) && is_finite(e.offset);
+                target += luminance_of_magnitude(e.difference());
+            }
         }
         if (!finite || !std::isfinite(target)) {
             state.nonfinite = true;
@@ -127,6 +141,17 @@ class GradientTarget final : public ChainTarget {
         for (const BdptSample::Splat& splat : bidirectional.light_splats)
             state.splats.push_back(
                 {slot(light_slot(crop_pixel_index(film, splat.film_position))), splat.value});
+        for (const BidirectionalGradientSample::LightTerm& term : bidirectional.light_terms) {
+            state.splats.push_back({slot(term.pixel), term.primal});
+            const std::span<const NeighbourLink> term_links = neighbours_.links(term.pixel);
+            for (std::uint32_t k = 0; k < term.count; ++k) {
+                const Rgb d = bidirectional.light_estimates[term.first + k].difference();
+                if (is_black(d)) continue;
+                state.splats.push_back(
+                    {slot(edge_slots + static_cast<std::size_t>(term_links[k].edge)),
+                     term_links[k].from_end ? d : Rgb(-d)});
+            }
+        }
     }
 
   private:
@@ -234,6 +259,7 @@ GdmltSettings gdmlt_settings_from_scene(const IntegratorSettings& integrator) {
     s.primal_from_offsets = props.get_bool("primal_from_offsets", s.primal_from_offsets);
     s.very_direct_samples = props.get_int32("very_direct_samples", s.very_direct_samples);
     s.bidirectional = props.get_bool("bidirectional", s.bidirectional);
+    s.shift_light_tracing = props.get_bool("shift_light_tracing", s.shift_light_tracing);
     props.check_all_read();
     validate_gdmlt_settings(s, integrator.desc.loc);
     return s;
@@ -248,6 +274,8 @@ void validate_gdmlt_settings(const GdmltSettings& s, const FileLoc& loc) {
                          "primal_weight must be positive (the chain must reach every pixel "
                          "with light)");
     if (s.very_direct_samples < 1) throw InputError(loc, "very_direct_samples must be positive");
+    if (s.shift_light_tracing && !s.bidirectional)
+        throw InputError(loc, "shift_light_tracing needs bidirectional (no light tracing without)");
 }
 
 }  // namespace gdmlt::mlt

@@ -69,6 +69,9 @@ struct GdmltSettings : MarkovChainSettings {
     /// (sample_bidirectional_gradients): light tracing is not shifted and joins the very direct
     /// layer.
     bool bidirectional = false;
+    /// With bidirectional: shift light tracing too (to the neighbours of the pixel it lands
+    /// on; sample_bidirectional_gradients), instead of adding it unshifted after the solve.
+    bool shift_light_tracing = false;
     /// Samples per pixel of the very direct pass (camera rays only, about 2% of a 16 s render
     /// at 256^2; fewer leave visible anti-aliasing noise on the edges of lights).
     int very_direct_samples = 64;

@@ -42,6 +42,142 @@ Path truncated(const Path& path, int vertex_count) {
     return cut;
 }
 
+/// Light tracing strategy (s, 1) of `light` written as a camera path: vertex 0 the one the
+/// pinhole sees at `film_position`, the last the point on the area light, without random
+/// numbers. False where the shift cannot take it: a light at infinity or with a delta
+/// position or direction, or a vertex scattered through a delta lobe of a BSDF that also has
+/// others (its lobe could not be told from geometry). Both depend only on what a shift keeps,
+/// so base and offset are treated alike.
+bool light_path_in_camera_order(const Scene& scene, const std::vector<BdptVertex>& light, int s,
+                                const Vec2f& film_position, Path& path) {
+    const BdptVertex& origin = light[0];
+    if (origin.at_infinity || origin.delta_light || origin.emitter < 0 || s < 2) return false;
+    path.vertices.clear();
+    path.film_position = film_position;
+    path.camera_position = scene.camera().position();
+    path.camera_direction =
+        (light[static_cast<std::size_t>(s - 1)].p - path.camera_position).normalized();
+    path.escaped = false;
+    path.replayable = false;
+    Vec3f from = path.camera_position;
+    for (int j = s - 1; j >= 1; --j) {
+        const BdptVertex& lv = light[static_cast<std::size_t>(j)];
+        PathVertex v;
+        v.si = lv.si;
+        const Bsdf& bsdf = scene.bsdf_of(v.si);
+        v.roughness = bsdf.roughness_class();
+        const Vec3f wo_world = (from - lv.p).normalized();
+        v.wi_world = (light[static_cast<std::size_t>(j - 1)].p - lv.p).normalized();
+        v.continued = true;
+        v.transmission = v.si.n_geometric.dot(v.wi_world) * v.si.n_geometric.dot(wo_world) < 0.f;
+        v.delta = j < s - 1 && lv.delta;
+        const Vec3f wo = v.si.shading.to_local(wo_world), wi = v.si.shading.to_local(v.wi_world);
+        if (v.delta) {
+            if (v.roughness != RoughnessClass::Delta) return false;
+            const BsdfSample bs =
+                bsdf.sample(v.si.uv, wo, v.transmission ? 1.f : 0.f, Vec2f(0.5f, 0.5f));
+            if (!bs.valid() || !bs.delta || bs.transmission != v.transmission) return false;
+            v.pdf = bs.pdf_solid_angle;
+            v.f = bs.weight * bs.pdf_solid_angle;
+        } else {
+            v.f = bsdf.eval(v.si.uv, wo, wi);
+            v.pdf = bsdf.pdf(v.si.uv, wo, wi);
+        }
+        if (!(v.pdf > 0.f) || is_black(v.f)) return false;
+        path.vertices.push_back(v);
+        from = lv.p;
+    }
+    // The light's point as a surface hit: the segment from light vertex 1 reached it.
+    const BdptVertex& first = light[1];
+    const Vec3f d = origin.p - first.p;
+    const float distance = d.norm();
+    Ray ray = spawn_ray(first.p, first.n_geometric, d / distance);
+    ray.t_max = distance * 1.01f;
+    const SurfaceInteraction hit = scene.intersect(ray);
+    if (!hit.valid() ||
+        scene.shapes()[static_cast<std::size_t>(hit.shape)].emitter() != origin.emitter ||
+        (hit.p - origin.p).norm() > 1e-3f * distance)
+        return false;
+    PathVertex end;
+    end.si = hit;
+    end.roughness = scene.bsdf_of(hit).roughness_class();
+    path.vertices.push_back(end);
+    return true;
+}
+
+/// The product of the BSDF values f (per channel) and of the densities along a camera-order
+/// light path up to its vertex before the light, with its emission towards that vertex.
+struct PathValue {
+    Rgb f = Rgb::Ones();
+    double pdf = 1.0;
+};
+PathValue camera_order_value(const Scene& scene, const Path& path) {
+    PathValue v;
+    const std::size_t n = path.vertices.size();
+    for (std::size_t k = 0; k + 1 < n; ++k) {
+        v.f *= path.vertices[k].f;
+        v.pdf *= path.vertices[k].pdf;
+    }
+    const PathVertex& end = path.vertices[n - 1];
+    v.f *= scene.emitted(end.si, (path.vertices[n - 2].si.p - end.si.p).normalized());
+    return v;
+}
+
+/// Shifts light tracing term (s, 1) (connection `c`, weighted estimate `value`) to the
+/// neighbours of the pixel it lands on (BidirectionalGradientSample). False when it stays
+/// unshifted.
+bool shift_light_tracing(const Scene& scene, const std::vector<BdptVertex>& light, int s,
+                         const BdptConnection& c, const Rgb& value, manifold::ShiftKind shift,
+                         const NeighbourSet& neighbours, BidirectionalGradientScratch& scratch,
+                         BidirectionalGradientSample& out, PathCounters& counters,
+                         manifold::ShiftCounters& shift_counters) {
+    Path& base = scratch.light_path;
+    if (!light_path_in_camera_order(scene, light, s, c.film_position, base)) return false;
+    ++counters.bounce_rays;  // the ray that found the light's point
+    const Film& film = scene.camera().film();
+    const std::uint32_t pixel = crop_pixel_index(film, c.film_position);
+    const std::span<const NeighbourLink> links = neighbours.links(pixel);
+    BidirectionalGradientSample::LightTerm term;
+    term.pixel = pixel;
+    term.primal = value;
+    term.first = static_cast<std::uint32_t>(out.light_estimates.size());
+    term.count = static_cast<std::uint32_t>(links.size());
+    const PathValue x_value = camera_order_value(scene, base);
+    for (const NeighbourLink& link : links) {
+        const manifold::ShiftResult shifted =
+            manifold::shift_path(scene, base, link.offset.cast<float>(), shift, shift_counters);
+        Rgb offset_value = Rgb::Zero();
+        double rho = 0.0;
+        const Path& y = shifted.offset;
+        if (shifted.status == manifold::ShiftStatus::Ok &&
+            y.vertices.size() == base.vertices.size()) {
+            double log_j = 0.0;
+            for (double l : shifted.log_jacobian) log_j += l;
+            const PathValue y_value = camera_order_value(scene, y);
+            // The shared light point: its forward density is the base's (same origin).
+            light_subpath_from_path(scene, light[0], y, scratch.offset_light);
+            const float weight =
+                light_tracing_mis_weight(scene, scratch.offset_light, s, true, scratch.bdpt);
+            const double j = std::exp(log_j);
+            rho = y_value.pdf * j / x_value.pdf;
+            for (int ch = 0; ch < 3; ++ch)
+                if (x_value.f[ch] > 0.f)
+                    offset_value[ch] =
+                        static_cast<float>(static_cast<double>(c.contribution[ch]) * weight * j *
+                                           y_value.f[ch] / x_value.f[ch]);
+            if (!is_finite(offset_value) || !std::isfinite(rho) || !(rho > 0.0))
+                offset_value = Rgb::Zero();
+        }
+        const double w = is_black(offset_value) ? 1.0 : 1.0 / (1.0 + rho * rho);
+        LinkEstimate e;
+        e.base = value * static_cast<float>(w);
+        e.offset = offset_value * static_cast<float>(w);
+        out.light_estimates.push_back(e);
+    }
+    out.light_terms.push_back(term);
+    return true;
+}
+
 }  // namespace
 
 GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
@@ -114,12 +250,14 @@ GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
     return out;
 }
 
-BidirectionalGradientSample sample_bidirectional_gradients(
-    const Scene& scene, const Vec2f& film_position, SampleStream& stream,
-    const PathSamplerSettings& path_in, manifold::ShiftKind shift,
-    std::span<const NeighbourLink> links, std::span<LinkEstimate> estimates,
-    BidirectionalGradientScratch& scratch, PathCounters& counters,
-    manifold::ShiftCounters& shift_counters) {
+void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_position,
+                                    SampleStream& stream, const PathSamplerSettings& path_in,
+                                    manifold::ShiftKind shift, std::span<const NeighbourLink> links,
+                                    std::span<LinkEstimate> estimates,
+                                    const NeighbourSet* neighbours,
+                                    BidirectionalGradientScratch& scratch,
+                                    BidirectionalGradientSample& out, PathCounters& counters,
+                                    manifold::ShiftCounters& shift_counters) {
     PathSamplerSettings path = path_in;
     if (path.max_depth < 0) path.max_depth = kUnboundedDepthCap;
     path.rr_depth = std::numeric_limits<int>::max();
@@ -139,7 +277,11 @@ BidirectionalGradientSample sample_bidirectional_gradients(
                              scratch.base_camera);
 
     // 2. The base's strategies. Paths of one segment (very direct light) are left out.
-    BidirectionalGradientSample out;
+    out.primal = Rgb::Zero();
+    out.light_splats.clear();
+    out.light_terms.clear();
+    out.light_estimates.clear();
+    out.nonfinite = 0;
     scratch.terms.clear();
     BdptConnectionInput in;
     in.light = &light;
@@ -175,7 +317,10 @@ BidirectionalGradientSample sample_bidirectional_gradients(
             }
             if (is_black(value)) continue;
             if (t == 1) {
-                out.light_splats.push_back({c.film_position, value});
+                if (!neighbours ||
+                    !shift_light_tracing(scene, light, s, c, value, shift, *neighbours, scratch,
+                                         out, counters, shift_counters))
+                    out.light_splats.push_back({c.film_position, value});
             } else {
                 out.primal += value;
                 scratch.terms.push_back({s, t, value});
@@ -251,7 +396,6 @@ BidirectionalGradientSample sample_bidirectional_gradients(
             estimate.offset += offset_value * static_cast<float>(weight);
         }
     }
-    return out;
 }
 
 }  // namespace gdmlt::mlt

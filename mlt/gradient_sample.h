@@ -73,14 +73,36 @@ GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
 /// side is shared); a pair whose one side contributes nothing is estimated from the other side
 /// alone (weight 1 there, 0 here), which both sides decide the same way.
 ///
-/// Light tracing (t = 1) lands on another pixel than the camera sample's and is not shifted: it
-/// is returned as splats, added to the image after reconstruction like very direct light
-/// (which, paths of one segment, is left out here: GDMLT renders it in its own pass).
+/// Light tracing (t = 1) lands on another pixel than the camera sample's. With a neighbour set
+/// and a light subpath that starts on an area light, it is shifted too: the path written in
+/// camera order (vertex 0 the one the pinhole sees, the last on the light) is shifted as a
+/// camera path is, to the neighbours of the pixel it lands on, by the maps that need no random
+/// numbers (Path::replayable: reconnection, half vector, manifold walks; a vertex that would
+/// need a replay fails the shift). In that measure (film position and directions in camera
+/// order) the offset's value over the base's density is
+///     f(y) |T'| / p(x) = C(x) f(y) |T'| / f(x),
+/// C(x) = f(x) / p(x) the base's light tracing estimate, so no density of the light tracer in
+/// camera order is needed; each path keeps its own MIS weight over strategies, and the weight
+/// between the shift's directions is the power heuristic of the camera-order BSDF densities
+/// times |T'| (any weights that sum to one over a pair are unbiased). Light paths from point,
+/// spot, directional or environment lights, and paths without a neighbour set, are returned
+/// as unshifted splats, added after reconstruction like very direct light (which, paths of one
+/// segment, is left out here: GDMLT renders it in its own pass).
 struct BidirectionalGradientSample {
     /// Strategies with t >= 2 at the camera sample's pixel, paths of >= 2 segments.
     Rgb primal = Rgb::Zero();
-    /// Light tracing (t = 1): per-light-path estimates at the film positions they land on.
+    /// Unshifted light tracing: per-light-path estimates at the film positions they land on.
     std::vector<BdptSample::Splat> light_splats;
+    /// Shifted light tracing: per term, the pixel (crop index) it lands on, its estimate (per
+    /// light path, as a splat), and its link estimates light_estimates[first .. first + count)
+    /// for that pixel's links, in NeighbourSet::links order.
+    struct LightTerm {
+        std::uint32_t pixel = 0;
+        Rgb primal = Rgb::Zero();
+        std::uint32_t first = 0, count = 0;
+    };
+    std::vector<LightTerm> light_terms;
+    std::vector<LinkEstimate> light_estimates;
     /// Strategy values that were not finite (dropped).
     int nonfinite = 0;
 };
@@ -94,17 +116,22 @@ struct BidirectionalGradientScratch {
         Rgb value = Rgb::Zero();  // w_st(x) f(x) / p_st(x)
     };
     std::vector<Term> terms;
+    Path light_path;  // a light tracing path in camera order
+    std::vector<BdptVertex> offset_light;
 };
 
 /// Samples a bidirectional base through `film_position`. Numbers: the camera subpath reads the
 /// unidirectional layout (kDimensionsPerBounce per vertex) in a block of max_depth vertices,
 /// then the light subpath its BDPT layout; no Russian roulette (max_depth -1 is capped at
-/// kUnboundedDepthCap). `estimates[k]` gets link k's halves.
-BidirectionalGradientSample sample_bidirectional_gradients(
-    const Scene& scene, const Vec2f& film_position, SampleStream& stream,
-    const PathSamplerSettings& path, manifold::ShiftKind shift,
-    std::span<const NeighbourLink> links, std::span<LinkEstimate> estimates,
-    BidirectionalGradientScratch& scratch, PathCounters& counters,
-    manifold::ShiftCounters& shift_counters);
+/// kUnboundedDepthCap). `estimates[k]` gets link k's halves. `neighbours` (over the crop
+/// window) enables the shifts of light tracing; without it light tracing is unshifted.
+void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_position,
+                                    SampleStream& stream, const PathSamplerSettings& path,
+                                    manifold::ShiftKind shift, std::span<const NeighbourLink> links,
+                                    std::span<LinkEstimate> estimates,
+                                    const NeighbourSet* neighbours,
+                                    BidirectionalGradientScratch& scratch,
+                                    BidirectionalGradientSample& out, PathCounters& counters,
+                                    manifold::ShiftCounters& shift_counters);
 
 }  // namespace gdmlt::mlt

@@ -484,6 +484,45 @@ void camera_subpath_from_path(const Scene& scene, const Path& path, int vertex_c
     }
 }
 
+void light_subpath_from_path(const Scene& scene, const BdptVertex& origin, const Path& path,
+                             std::vector<BdptVertex>& out) {
+    out.clear();
+    out.push_back(origin);
+    const auto n = static_cast<int>(path.vertices.size());
+    // Path vertices n-2 .. 0 become light vertices 1 .. n-1 (vertex n-1 is the origin).
+    for (int k = n - 2; k >= 0; --k) {
+        const PathVertex& pv = path.vertices[static_cast<std::size_t>(k)];
+        BdptVertex v;
+        v.kind = BdptVertex::Kind::Surface;
+        v.si = pv.si;
+        v.p = pv.si.p;
+        v.n_geometric = pv.si.n_geometric;
+        v.wo = (out.back().p - v.p).normalized();
+        v.emitter = scene.shapes()[static_cast<std::size_t>(pv.si.shape)].emitter();
+        // The pair of directions at a vertex is scattered through the same lobe either way.
+        v.delta = k > 0 && pv.delta;
+        const BdptVertex* before = out.size() >= 2 ? &out[out.size() - 2] : nullptr;
+        const BdptVertex& prev = out.back();
+        v.pdf_fwd = prev.delta ? 0.f : vertex_pdf(scene, prev, before, v);
+        out.push_back(v);
+    }
+    // Reverse densities: light vertex i generated from i + 1 (reached from i + 2).
+    for (std::size_t i = 0; i + 2 < out.size(); ++i) {
+        const BdptVertex& from = out[i + 1];
+        out[i].pdf_rev = from.delta ? 0.f : vertex_pdf(scene, from, &out[i + 2], out[i]);
+    }
+}
+
+float light_tracing_mis_weight(const Scene& scene, const std::vector<BdptVertex>& light, int s,
+                               bool power_heuristic, BdptScratch& scratch) {
+    BdptVertex pinhole;
+    pinhole.kind = BdptVertex::Kind::Camera;
+    pinhole.p = scene.camera().position();
+    const std::vector<BdptVertex> camera{pinhole};
+    return mis_weight(scene, light, camera, nullptr, &pinhole, s, 1, power_heuristic,
+                      scratch.light_mis, scratch.camera_mis);
+}
+
 void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& camera_stream,
                  SampleStream& light_stream, const BdptSettings& settings, BdptScratch& scratch,
                  BdptSample& out, PathCounters& counters) {

@@ -153,6 +153,19 @@ void sample_light_subpath(const Scene& scene, SampleStream& stream, int max_vert
 void camera_subpath_from_path(const Scene& scene, const Path& path, int vertex_count,
                               std::vector<BdptVertex>& out);
 
+/// The inverse view: a light-traced path written in camera order (`path`: vertex 0 seen by the
+/// pinhole, the last one on the area emitter that `origin` is a point of) as the light subpath
+/// [origin, path vertex n-2, ..., path vertex 0] with the forward and reverse area densities and
+/// delta flags the light subpath's random walk gives such a path (throughputs are left zero:
+/// only MIS weights use this). Shifted light tracing paths get their MIS weights from it.
+void light_subpath_from_path(const Scene& scene, const BdptVertex& origin, const Path& path,
+                             std::vector<BdptVertex>& out);
+
+/// The MIS weight of light tracing, strategy (s, 1), for the path of light subpath vertices
+/// 0 .. s-1 seen from the pinhole.
+float light_tracing_mis_weight(const Scene& scene, const std::vector<BdptVertex>& light, int s,
+                               bool power_heuristic, BdptScratch& scratch);
+
 /// One bidirectional sample through `film_position` (full-film pixels).
 void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& camera_stream,
                  SampleStream& light_stream, const BdptSettings& settings, BdptScratch& scratch,

@@ -52,6 +52,11 @@ struct Path {
     /// The last continuation escaped the scene (environment light) in this direction.
     bool escaped = false;
     Vec3f escape_direction = Vec3f::Zero();
+    /// The vertices carry the random numbers that chose their continuations (u_lobe,
+    /// u_direction). False for a light subpath written in camera order: a shift may then only
+    /// use maps that depend on the geometry (reconnection, half vector, manifold walks, a delta
+    /// lobe's mirror or refraction), never replay numbers.
+    bool replayable = true;
 };
 
 /// Samples a camera path through `film_position` with the same decisions and random-number

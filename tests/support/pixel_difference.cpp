@@ -86,11 +86,12 @@ BidirectionalDifference bidirectional_pixel_difference(const Scene& scene,
             const NeighbourLink link{side == 0 ? offset : Vec2i(-offset), 0, side == 0};
             const Vec2i pixel = Vec2i(xi, y) + (side == 0 ? Vec2i::Zero() : offset);
             mlt::LinkEstimate estimate;
-            const mlt::BidirectionalGradientSample g = mlt::sample_bidirectional_gradients(
-                scene,
-                Vec2f(static_cast<float>(pixel.x()) + jitter.x(),
-                      static_cast<float>(pixel.y()) + jitter.y()),
-                stream, path, shift, {&link, 1}, {&estimate, 1}, scratch, counters, shifts);
+            mlt::BidirectionalGradientSample g;
+            mlt::sample_bidirectional_gradients(scene,
+                                                Vec2f(static_cast<float>(pixel.x()) + jitter.x(),
+                                                      static_cast<float>(pixel.y()) + jitter.y()),
+                                                stream, path, shift, {&link, 1}, {&estimate, 1},
+                                                nullptr, scratch, g, counters, shifts);
             EXPECT_EQ(g.nonfinite, 0);
             const float value = luminance(estimate.difference());
             d += side == 0 ? value : -value;
