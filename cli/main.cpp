@@ -20,6 +20,7 @@
 #include "cli/validators.h"
 #include "core/image/gradient_layers.h"
 #include "core/image/image_io.h"
+#include "core/math/stopwatch.h"
 #include "core/render/adap_selection.h"
 #include "core/render/feature_pass.h"
 #include "core/render/render_bdpt.h"
@@ -235,12 +236,12 @@ reconstruct::ReconstructConfig reconstruct_config(const RenderOptions& options) 
 /// raw layers; returns the seconds the solve took.
 double solve_gradient_render(const GradientBuffers& buffers,
                              const reconstruct::ReconstructConfig& config, IntegratorResult& r) {
-    const auto start = std::chrono::steady_clock::now();
+    const Clock::time_point start = Clock::now();
     r.image = reconstruct::reconstruct_buffers(buffers, config).image;
     // Every layer the solve may read (variances, sample counts, graph edges: whichever the
     // integrator filled), so that `gdmlt reconstruct` re-solves the file to this image.
     r.extra_layers = gradient_layers(buffers);
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return seconds_since(start);
 }
 
 json shifts_json(const manifold::ShiftCounters& shifts) {
@@ -642,10 +643,9 @@ int run_render(const RenderOptions& options) {
         FeatureSettings fs;
         fs.spp = feature_spp;
         fs.seed = options.seed.value_or(scene.sampler().seed);
-        const auto start = std::chrono::steady_clock::now();
+        const Clock::time_point start = Clock::now();
         features = render_features(scene, fs, &g_interrupted);
-        feature_pass_s =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        feature_pass_s = seconds_since(start);
         if (!options.quiet)
             std::cerr << "gdmlt: feature pass: " << features->spp << " spp in " << feature_pass_s
                       << " s\n";
@@ -656,10 +656,9 @@ int run_render(const RenderOptions& options) {
     json selection_stats;
     setup.config = {{"kind", neighbours}};
     if (adap) {
-        const auto start = std::chrono::steady_clock::now();
+        const Clock::time_point start = Clock::now();
         adap_set = select_adap_neighbours(*features, adap_settings);
-        const double selection_s =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const double selection_s = seconds_since(start);
         setup.adap = &*adap_set;
         setup.seconds = feature_pass_s + selection_s;
         setup.config.update({{"k", adap_settings.neighbours},

@@ -11,16 +11,12 @@
 #include <limits>
 #include <utility>
 
+#include "core/math/stopwatch.h"
 #include "core/sampling/distribution_1d.h"
 #include "mlt/primary_sample_vector.h"
 
 namespace gdmlt::mlt {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 // Stream identifiers: each purpose gets its own family of PCG streams, so bootstrap samples,
 // the independent check and the chains never share random numbers.

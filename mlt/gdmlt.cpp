@@ -8,17 +8,13 @@
 #include <iostream>
 #include <stdexcept>
 
+#include "core/math/stopwatch.h"
 #include "core/render/render_path.h"
 #include "core/scene/properties.h"
 #include "mlt/gradient_sample.h"
 
 namespace gdmlt::mlt {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 double luminance_of_magnitude(const Rgb& v) {
     return static_cast<double>(luminance(v.abs()));

@@ -8,15 +8,11 @@
 #include <limits>
 #include <stdexcept>
 
+#include "core/math/stopwatch.h"
 #include "core/render/pixel_passes.h"
 
 namespace gdmlt::mlt {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// Per-pixel sums of the samples based in this pixel. The per-link difference sums live in one
 /// flat array indexed like the NeighbourSet's links, so every pixel writes only its own memory
@@ -75,11 +71,7 @@ GdptOutput render_gdpt(const Scene& scene, const GdptSettings& settings,
         std::vector<LinkEstimate>(neighbours.max_links()));
 
     GdptOutput out;
-    PixelPassSettings passes;
-    passes.spp = settings.spp;
-    passes.time_budget_s = settings.time_budget_s;
-    passes.seed = settings.seed;
-    passes.max_pass_spp = 16;
+    const PixelPassSettings passes = pixel_pass_settings(settings, 16);
     const PixelPassResult done = run_pixel_passes(
         film, passes, cancel,
         [&](int x, int y, const Vec2f& film_position, IndependentStream& stream) {

@@ -7,17 +7,13 @@
 #include <iostream>
 #include <limits>
 
+#include "core/math/stopwatch.h"
 #include "core/path/bidirectional.h"
 #include "core/render/render_path.h"
 #include "core/scene/properties.h"
 
 namespace gdmlt::mlt {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// Kelemen's PSSMLT target: the path tracer's radiance through the film position the first two
 /// primary samples give, splatted into its pixel; the target is its luminance I.

@@ -5,21 +5,15 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/math/stopwatch.h"
 #include "reconstruct/graph_system.h"
 
 namespace gdmlt::reconstruct {
-namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-}  // namespace
 
 ReconstructResult solve_cv(const ReconstructInput& input, const ReconstructConfig& config) {
     if (config.block_size <= 0) throw std::invalid_argument("reconstruct: block_size <= 0");
     if (!(config.cv_epsilon > 0.0)) throw std::invalid_argument("reconstruct: cv_epsilon <= 0");
-    const auto t0 = std::chrono::steady_clock::now();
+    const auto t0 = Clock::now();
     ReconstructResult result;
     ReconstructStats& stats = result.stats;
     const detail::CompiledGraph g = detail::compile_graph(input, stats);
@@ -33,7 +27,7 @@ ReconstructResult solve_cv(const ReconstructInput& input, const ReconstructConfi
     std::vector<double> next(3 * n, 0.0);
     stats.seconds_setup = seconds_since(t0);
 
-    const auto t1 = std::chrono::steady_clock::now();
+    const auto t1 = Clock::now();
     const double eps = config.cv_epsilon;
     // v scales Var(p) into the variance of the current iterate x^k. x^0 = p, so v_0 = 1; each
     // iteration averages the pixel with about 4 neighbour estimates, dividing the variance by

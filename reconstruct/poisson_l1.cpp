@@ -6,14 +6,11 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/math/stopwatch.h"
 #include "reconstruct/graph_system.h"
 
 namespace gdmlt::reconstruct {
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 inline double norm3(double a, double b, double c) {
     return std::sqrt(a * a + b * b + c * c);
@@ -104,7 +101,7 @@ ReconstructResult solve_l1(const ReconstructInput& input, const ReconstructConfi
     if (!(config.irls_rho_min > 0.0))
         throw std::invalid_argument("reconstruct: irls_rho_min must be > 0");
     const auto block = static_cast<std::size_t>(config.block_size);
-    const auto t0 = std::chrono::steady_clock::now();
+    const auto t0 = Clock::now();
     ReconstructResult result;
     ReconstructStats& stats = result.stats;
     const detail::CompiledGraph graph = detail::compile_graph(input, stats);
@@ -112,7 +109,7 @@ ReconstructResult solve_l1(const ReconstructInput& input, const ReconstructConfi
     std::vector<double> x = detail::initial_guess(graph, config.warm_start);
     stats.seconds_setup = seconds_since(t0);
 
-    const auto t1 = std::chrono::steady_clock::now();
+    const auto t1 = Clock::now();
     detail::CgWorkspace work;
     const int outer = std::max(1, config.irls_iterations);
     for (int k = 0; k < outer; ++k) {

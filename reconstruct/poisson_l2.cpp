@@ -5,29 +5,23 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/math/stopwatch.h"
 #include "reconstruct/graph_system.h"
 
 namespace gdmlt::reconstruct {
-namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-}  // namespace
 
 ReconstructResult solve_l2(const ReconstructInput& input, const ReconstructConfig& config) {
     if (!std::isfinite(config.alpha) || config.alpha < 0.0)
         throw std::invalid_argument("reconstruct: alpha must be finite and >= 0");
     if (config.block_size <= 0) throw std::invalid_argument("reconstruct: block_size <= 0");
-    const auto t0 = std::chrono::steady_clock::now();
+    const auto t0 = Clock::now();
     ReconstructResult result;
     const detail::CompiledGraph graph = detail::compile_graph(input, result.stats);
     const detail::SystemWeights weights = detail::l2_weights(graph, config.alpha);
     std::vector<double> x = detail::initial_guess(graph, config.warm_start);
     result.stats.seconds_setup = seconds_since(t0);
 
-    const auto t1 = std::chrono::steady_clock::now();
+    const auto t1 = Clock::now();
     detail::CgWorkspace work;
     const detail::CgOutcome cg =
         detail::solve_pcg(graph, weights, x, config.cg_max_iterations, config.cg_tolerance,

@@ -16,10 +16,6 @@ float adjoint_shading_correction(const SurfaceInteraction& si, const Vec3f& wo, 
 
 namespace {
 
-/// Subpath length without max_depth: Russian roulette ends walks long before (as in the path
-/// tracer's kUnboundedDepthCap for shifts).
-constexpr int kUnboundedVertices = 64;
-
 float cos_at(const Vec3f& n_geometric, const Vec3f& w) {
     return n_geometric.isZero() ? 1.f : std::abs(n_geometric.dot(w));
 }
@@ -531,11 +527,11 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
     out.nonfinite = 0;
     const bool bounded = settings.max_depth >= 0;
     // A path of s + t vertices has s + t - 1 segments (Mitsuba's depth).
-    const int camera_block = bounded ? settings.max_depth + 1 : kUnboundedVertices;
+    const int camera_block = bounded ? settings.max_depth + 1 : kBdptUnboundedVertices;
     const bool only = settings.only_s >= 0;
     const int max_camera = only ? std::min(camera_block, settings.only_t) : camera_block;
-    const int max_light = std::min(bounded ? settings.max_depth : kUnboundedVertices,
-                                   only ? settings.only_s : kUnboundedVertices);
+    const int max_light = std::min(bounded ? settings.max_depth : kBdptUnboundedVertices,
+                                   only ? settings.only_s : kBdptUnboundedVertices);
     // The camera subpath counts the pinhole as a vertex; rr_depth may be INT_MAX (no roulette,
     // as MMLT asks): no overflow.
     const int camera_rr_depth = settings.rr_depth < std::numeric_limits<int>::max()

@@ -32,6 +32,8 @@ namespace gdmlt {
 inline constexpr int kBdptCameraDimensions = 7;
 inline constexpr int kBdptEmissionDimensions = 5;
 inline constexpr int kBdptLightDimensions = 4;
+/// Subpath length without max_depth: Russian roulette ends walks long before.
+inline constexpr int kBdptUnboundedVertices = 64;
 
 struct BdptVertex {
     enum class Kind : std::uint8_t { Camera, Light, Surface };

@@ -13,6 +13,7 @@
 #include <chrono>
 
 #include "core/camera/camera.h"
+#include "core/math/stopwatch.h"
 #include "core/sampling/sample_stream.h"
 
 namespace gdmlt {
@@ -28,6 +29,17 @@ struct PixelPassSettings {
     int max_pass_spp = 64;  // with a time budget: the largest pass (without: passes of ~1 s)
 };
 
+/// The passes of an integrator whose settings have spp, time_budget_s and seed.
+template <typename Settings>
+PixelPassSettings pixel_pass_settings(const Settings& settings, int max_pass_spp) {
+    PixelPassSettings passes;
+    passes.spp = settings.spp;
+    passes.time_budget_s = settings.time_budget_s;
+    passes.seed = settings.seed;
+    passes.max_pass_spp = max_pass_spp;
+    return passes;
+}
+
 struct PixelPassResult {
     int spp_completed = 0;  // samples every pixel received
     int passes = 0;
@@ -42,11 +54,7 @@ PixelPassResult run_pixel_passes(const Film& film, const PixelPassSettings& sett
                                  const std::atomic<bool>* cancel, SampleFn&& sample,
                                  PassFn&& on_pass_done,
                                  std::atomic<std::uint64_t>* samples_done = nullptr) {
-    using Clock = std::chrono::steady_clock;
     constexpr int kTileSize = kPixelPassTileSize;
-    const auto seconds_since = [](Clock::time_point t) {
-        return std::chrono::duration<double>(Clock::now() - t).count();
-    };
     const auto cancelled = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
     const int width = film.crop_width, height = film.crop_height;
     const int tiles_x = (width + kTileSize - 1) / kTileSize;

@@ -7,16 +7,12 @@
 #include <chrono>
 #include <cmath>
 
+#include "core/math/stopwatch.h"
 #include "core/render/film_buffer.h"
 #include "core/render/pixel_passes.h"
 
 namespace gdmlt {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 struct TileSplat {
     std::uint32_t pixel = 0;
@@ -52,11 +48,7 @@ RenderOutput render_bdpt(const Scene& scene, const BdptRenderSettings& settings,
         }
     };
 
-    PixelPassSettings passes;
-    passes.spp = settings.spp;
-    passes.time_budget_s = settings.time_budget_s;
-    passes.seed = settings.seed;
-    passes.max_pass_spp = 16;
+    const PixelPassSettings passes = pixel_pass_settings(settings, 16);
     const PixelPassResult done = run_pixel_passes(
         film, passes, cancel,
         [&](int x, int y, const Vec2f& film_position, IndependentStream& stream) {

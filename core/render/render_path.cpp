@@ -8,18 +8,13 @@
 #include <mutex>
 #include <thread>
 
+#include "core/math/stopwatch.h"
 #include "core/render/film_buffer.h"
 #include "core/render/pixel_passes.h"
 #include "core/sampling/rng.h"
 
 namespace gdmlt {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// Calls `report` every `interval_s` from a background thread until stopped.
 class ProgressReporter {
@@ -84,11 +79,7 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
                               progress_interval_s);
 
     RenderStats stats;
-    PixelPassSettings passes;
-    passes.spp = settings.spp;
-    passes.time_budget_s = settings.time_budget_s;
-    passes.seed = settings.seed;
-    passes.max_pass_spp = 64;
+    const PixelPassSettings passes = pixel_pass_settings(settings, 64);
     const PixelPassResult done = run_pixel_passes(
         film, passes, cancel,
         [&](int x, int y, const Vec2f& film_position, IndependentStream& stream) {

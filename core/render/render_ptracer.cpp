@@ -8,17 +8,13 @@
 #include <cmath>
 #include <vector>
 
+#include "core/math/stopwatch.h"
 #include "core/path/bidirectional.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/sample_stream.h"
 
 namespace gdmlt {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 /// Light paths per work item: each item collects its splats in order and the items are merged
 /// in index order, so the sums do not depend on which thread ran what.
@@ -40,113 +36,47 @@ struct ChunkResult {
     std::uint64_t nonfinite = 0;
 };
 
+/// Light tracing is BDPT's strategy t = 1 alone, unweighted: the light subpath and the
+/// connection to the pinhole are BDPT's (core/path/bidirectional.h), so the two integrators
+/// cannot disagree about a light path's value.
 class LightTracer {
   public:
-    LightTracer(const Scene& scene, const PathSamplerSettings& path)
-        : scene_(scene), camera_(scene.camera()), path_(path) {}
+    LightTracer(const Scene& scene, const PathSamplerSettings& path) : scene_(scene), path_(path) {}
 
     /// Traces light path `index` and appends its splats (unnormalised: sum over paths, then
     /// divide by their number).
-    void trace(std::uint64_t seed, std::uint64_t index, ChunkResult& out) const {
+    void trace(std::uint64_t seed, std::uint64_t index, BdptScratch& scratch,
+               ChunkResult& out) const {
         IndependentStream stream(derive_stream(seed, kLightPathStream, index));
-        const float u_select = stream.next_1d();
-        const Vec2f u_position = stream.next_2d();
-        const Vec2f u_direction = stream.next_2d();
-        const EmittedRay emitted = scene_.sample_emitted_ray(u_select, u_position, u_direction);
+        // Light subpath vertex s - 1 seen by the pinhole makes a path of s segments.
+        const int max_vertices = path_.max_depth >= 0 ? path_.max_depth : kBdptUnboundedVertices;
+        sample_light_subpath(scene_, stream, max_vertices, path_.rr_depth, scratch.light,
+                             out.counters);
         ++out.counters.paths;
-        if (!emitted.valid()) return;
-
-        // s = 1, t = 1: the emitter's point seen by the pinhole (one segment), a pixel value
-        // Le cos_light / d^2 W / p_A(origin). Lights at infinity have no point to see, and
-        // point and spot lights are invisible to a camera (a delta in position cannot be hit
-        // by a camera ray; the path tracer and Mitsuba never show them either).
-        if (!emitted.at_infinity && !emitted.delta_position && !path_.hide_emitters &&
-            path_.min_depth <= 1) {
-            // Only area lights remain here; their emission is diffuse (the same radiance
-            // in every direction of the front side).
-            const CameraConnection c = camera_.connect(emitted.origin);
-            const float cos_light = emitted.n_geometric.dot(-c.direction);
-            if (c.valid() && cos_light > 0.f)
-                connect(emitted.origin, emitted.n_geometric, c,
-                        emitted.radiance * (cos_light * c.importance /
-                                            (c.distance * c.distance * emitted.pdf_position)),
-                        out);
-        }
-
-        Rgb beta = emitted.weight;
-        Ray ray = emitted.n_geometric.isZero()
-                      ? Ray{emitted.origin, emitted.direction, kInfinity}
-                      : spawn_ray(emitted.origin, emitted.n_geometric, emitted.direction);
-        // `vertices` light-subpath vertices after the emitter: connecting vertex k to the
-        // pinhole makes a path of k + 1 segments (Mitsuba's depth).
-        for (int vertices = 1;; ++vertices) {
-            const SurfaceInteraction si = scene_.intersect(ray);
-            ++out.counters.bounce_rays;
-            if (!si.valid()) return;
-            const Bsdf& bsdf = scene_.bsdf_of(si);
-            const Vec3f wo = -ray.direction;
-            const Vec3f wo_local = si.shading.to_local(wo);
-            const int segments = vertices + 1;
-            const bool within_depth = path_.max_depth < 0 || segments <= path_.max_depth;
-            if (!within_depth) return;
-            if (!bsdf.is_delta() && segments >= path_.min_depth) {
-                const CameraConnection c = camera_.connect(si.p);
-                const Vec3f to_camera = -c.direction;
-                // As the path tracer: the geometric sides must agree with what the shading
-                // frame calls reflection or transmission (no light through a smooth-shaded
-                // wall).
-                const Vec3f wi_local = si.shading.to_local(to_camera);
-                const bool sides_agree =
-                    (wo_local.z() * wi_local.z() > 0.f) ==
-                    (si.n_geometric.dot(wo) * si.n_geometric.dot(to_camera) > 0.f);
-                if (c.valid() && sides_agree) {
-                    const Rgb f = bsdf.eval(si.uv, wo_local, wi_local, TransportMode::Importance) *
-                                  adjoint_shading_correction(si, wo, to_camera);
-                    if (!is_black(f))
-                        connect(si.p, si.n_geometric, c,
-                                beta * f * (c.importance / (c.distance * c.distance)), out);
-                }
+        static const std::vector<BdptVertex> kNoCameraSubpath;
+        BdptConnectionInput in;
+        in.camera = &kNoCameraSubpath;
+        in.light = &scratch.light;
+        in.t = 1;
+        in.mis = false;
+        for (int s = 1; s <= static_cast<int>(scratch.light.size()); ++s) {
+            // s = 1: the emitter's point itself (area lights; point and spot lights are
+            // invisible to a camera, as in the path tracer and Mitsuba).
+            if (s < path_.min_depth || (s == 1 && path_.hide_emitters)) continue;
+            in.s = s;
+            const BdptConnection c = connect_bdpt(scene_, in, scratch, out.counters);
+            if (!is_finite(c.contribution)) {
+                ++out.nonfinite;
+                continue;
             }
-            if (path_.max_depth >= 0 && segments >= path_.max_depth) return;
-
-            const float u_lobe = stream.next_1d();
-            const Vec2f u = stream.next_2d();
-            const float u_rr = stream.next_1d();
-            const BsdfSample bs =
-                bsdf.sample(si.uv, wo_local, u_lobe, u, TransportMode::Importance);
-            if (!bs.valid()) return;
-            const Vec3f wi = si.shading.to_world(bs.wi);
-            const float side = si.n_geometric.dot(wi) * si.n_geometric.dot(wo);
-            if (bs.transmission ? side > 0.f : side < 0.f) return;
-            beta *= bs.weight * adjoint_shading_correction(si, wo, wi);
-            if (is_black(beta)) return;
-            // Russian roulette as the path tracer's (Mitsuba's rule: continue with the
-            // throughput's largest channel, at most 0.95) from rr_depth on.
-            if (vertices >= path_.rr_depth) {
-                const float q = std::min(beta.maxCoeff(), 0.95f);
-                if (!(u_rr < q)) return;
-                beta /= q;
-            }
-            ray = spawn_ray(si.p, si.n_geometric, wi);
+            if (is_black(c.contribution)) continue;
+            out.splats.push_back(
+                {crop_pixel_index(scene_.camera().film(), c.film_position), c.contribution});
         }
     }
 
   private:
-    /// Splats `value` at the connection's pixel when the segment to the pinhole is free.
-    void connect(const Vec3f& p, const Vec3f& n_geometric, const CameraConnection& c,
-                 const Rgb& value, ChunkResult& out) const {
-        const Ray shadow = spawn_ray_to(p, n_geometric, camera_.position(), Vec3f::Zero());
-        ++out.counters.shadow_rays;
-        if (scene_.occluded(shadow)) return;
-        if (!is_finite(value)) {
-            ++out.nonfinite;
-            return;
-        }
-        out.splats.push_back({crop_pixel_index(camera_.film(), c.film_position), value});
-    }
-
     const Scene& scene_;
-    const PerspectiveCamera& camera_;
     PathSamplerSettings path_;
 };
 
@@ -198,11 +128,12 @@ RenderOutput render_ptracer(const Scene& scene, const RenderSettings& settings,
             std::vector<ChunkResult> chunks(chunk_count);
             tbb::parallel_for(std::uint64_t{0}, chunk_count, [&](std::uint64_t chunk) {
                 ChunkResult& result = chunks[chunk];
+                BdptScratch scratch;
                 const std::uint64_t begin = chunk * kPathsPerChunk;
                 const std::uint64_t end = std::min(begin + kPathsPerChunk, batch);
                 for (std::uint64_t i = begin; i < end; ++i) {
                     if ((i & 255u) == 0 && cancelled()) return;
-                    tracer.trace(settings.seed, paths_done + i, result);
+                    tracer.trace(settings.seed, paths_done + i, scratch, result);
                 }
             });
             if (cancelled()) break;  // a batch is all or nothing: its paths are counted

@@ -93,12 +93,17 @@ SurfaceInteraction Scene::intersect(const Ray& ray) const {
     return si;
 }
 
+Scene::EmitterChoice Scene::choose_emitter(float u_select) const {
+    EmitterChoice c;
+    c.index = emitter_selection_.sample(u_select, &c.u_remapped);
+    c.pmf = emitter_selection_.pmf(c.index);
+    return c;
+}
+
 EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Vec2f& u) const {
     EmitterSample s;
     if (!emitter_selection_.valid()) return s;
-    float u_remapped = 0.f;
-    const std::size_t index = emitter_selection_.sample(u_select, &u_remapped);
-    const float pmf = emitter_selection_.pmf(index);
+    const auto [index, pmf, u_remapped] = choose_emitter(u_select);
     const Emitter& e = emitters_[index];
     s.emitter = static_cast<int>(index);
 
@@ -194,9 +199,7 @@ EmittedRay Scene::sample_emitted_ray(float u_select, const Vec2f& u_position,
                                      const Vec2f& u_direction) const {
     EmittedRay r;
     if (!emitter_selection_.valid()) return r;
-    float u_remapped = 0.f;
-    const std::size_t index = emitter_selection_.sample(u_select, &u_remapped);
-    const float pmf = emitter_selection_.pmf(index);
+    const auto [index, pmf, u_remapped] = choose_emitter(u_select);
     const Emitter& e = emitters_[index];
     r.emitter = static_cast<int>(index);
     // A point on the disk of the bounding sphere's radius perpendicular to `towards_light`,

@@ -173,6 +173,14 @@ class Scene {
     }
 
   private:
+    /// The emitter choice both emitter samplers make (by power), with `u_select` remapped to
+    /// [0, 1) within the chosen emitter's interval for reuse (the primitive of a mesh light).
+    struct EmitterChoice {
+        std::size_t index = 0;
+        float pmf = 0.f;
+        float u_remapped = 0.f;
+    };
+    EmitterChoice choose_emitter(float u_select) const;
     struct AreaPoint {
         Vec3f p = Vec3f::Zero(), n = Vec3f::Zero();
         Vec2f uv = Vec2f::Zero();

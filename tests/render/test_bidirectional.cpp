@@ -174,15 +174,7 @@ TEST(Ptracer, SameSeedGivesTheSameImageAtOneAndTwoThreads) {
     RenderSettings s;
     s.spp = 64;
     s.seed = 3;
-    RenderOutput one, two;
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
-        one = render_ptracer(scene, s);
-    }
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
-        two = render_ptracer(scene, s);
-    }
+    const auto [one, two] = test::at_one_and_two_threads([&] { return render_ptracer(scene, s); });
     ASSERT_GT(test::mean_luminance(one.image), 0.0);
     EXPECT_EQ(one.image.pixels, two.image.pixels);
     EXPECT_EQ(one.stats.samples, two.stats.samples);
@@ -294,15 +286,7 @@ TEST(Bdpt, SameSeedGivesTheSameImageAtOneAndTwoThreads) {
     BdptRenderSettings s;
     s.spp = 16;
     s.seed = 3;
-    RenderOutput one, two;
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
-        one = render_bdpt(scene, s);
-    }
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
-        two = render_bdpt(scene, s);
-    }
+    const auto [one, two] = test::at_one_and_two_threads([&] { return render_bdpt(scene, s); });
     ASSERT_GT(test::mean_luminance(one.image), 0.0);
     EXPECT_EQ(one.image.pixels, two.image.pixels);
 }
@@ -375,15 +359,8 @@ TEST(BidirectionalPssmlt, SameSeedGivesTheSameImageAtOneAndTwoThreads) {
     settings.bootstrap_samples = 5000;
     settings.chains = 40;
     settings.bidirectional = true;
-    mlt::PssmltOutput one, two;
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
-        one = mlt::render_pssmlt(scene, settings);
-    }
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
-        two = mlt::render_pssmlt(scene, settings);
-    }
+    const auto [one, two] =
+        test::at_one_and_two_threads([&] { return mlt::render_pssmlt(scene, settings); });
     ASSERT_GT(test::mean_luminance(one.image), 0.0);
     EXPECT_TRUE(one.image == two.image);
 }

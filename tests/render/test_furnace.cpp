@@ -62,15 +62,7 @@ TEST(Determinism, SameSeedGivesTheSameImageAtOneAndTwoThreads) {
             <bsdf type="dielectric"/></shape>
         <shape type="rectangle"><transform name="to_world"><scale value="0.3"/><rotate x="1" angle="90"/><translate y="0.9"/></transform>
             <emitter type="area"><rgb name="radiance" value="10, 10, 10"/></emitter></shape>)");
-    RenderOutput one, two;
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
-        one = render(scene, 8, 42);
-    }
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
-        two = render(scene, 8, 42);
-    }
+    const auto [one, two] = test::at_one_and_two_threads([&] { return render(scene, 8, 42); });
     EXPECT_TRUE(one.image == two.image);
     const RenderOutput other_seed = render(scene, 8, 43);
     EXPECT_FALSE(one.image == other_seed.image);

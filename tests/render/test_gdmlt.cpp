@@ -188,15 +188,8 @@ TEST(Gdmlt, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
     mlt::GdmltSettings s = small_gdmlt(4, 16);
     s.chains = 40;
     s.bootstrap_samples = 4000;
-    mlt::GdmltOutput one, two;
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
-        one = mlt::render_gdmlt(scene, s);
-    }
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
-        two = mlt::render_gdmlt(scene, s);
-    }
+    const auto [one, two] =
+        test::at_one_and_two_threads([&] { return mlt::render_gdmlt(scene, s); });
     EXPECT_TRUE(one.buffers.primal == two.buffers.primal);
     EXPECT_TRUE(one.buffers.dx == two.buffers.dx);
     EXPECT_TRUE(one.buffers.dy == two.buffers.dy);

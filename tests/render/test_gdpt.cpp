@@ -321,15 +321,8 @@ TEST(Gdpt, VarianceLayersAreBitIdenticalAtAnyThreadCountAndNeedTwoSamples) {
     settings.spp = 4;
     settings.seed = 9;
     settings.path.max_depth = 4;
-    GradientBuffers one, two;
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
-        one = mlt::render_gdpt(scene, settings).buffers;
-    }
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
-        two = mlt::render_gdpt(scene, settings).buffers;
-    }
+    const auto [one, two] =
+        test::at_one_and_two_threads([&] { return mlt::render_gdpt(scene, settings).buffers; });
     ASSERT_FALSE(one.primal_variance.pixels.empty());
     EXPECT_TRUE(one.primal_variance == two.primal_variance);
     EXPECT_TRUE(one.dx_variance == two.dx_variance);

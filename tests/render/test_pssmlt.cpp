@@ -155,15 +155,8 @@ TEST(Pssmlt, SameSeedGivesTheSameImageAtOneAndTwoThreads) {
     settings.mutations_per_pixel = 32;
     settings.bootstrap_samples = 5000;
     settings.chains = 40;
-    mlt::PssmltOutput one, two;
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
-        one = mlt::render_pssmlt(scene, settings);
-    }
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
-        two = mlt::render_pssmlt(scene, settings);
-    }
+    const auto [one, two] =
+        test::at_one_and_two_threads([&] { return mlt::render_pssmlt(scene, settings); });
     EXPECT_TRUE(one.image == two.image);
 }
 

@@ -1,8 +1,11 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
 // Scenes built in code for tests: a Mitsuba XML body wrapped into a <scene>, parsed and built.
+#include <tbb/global_control.h>
+
 #include <functional>
 #include <string>
+#include <utility>
 
 #include "core/render/render_path.h"
 #include "core/scene/scene.h"
@@ -51,6 +54,23 @@ struct IndependentRenders {
 /// Calls `render(seed)` for seeds 100 .. 100 + runs - 1; every render must drop no sample.
 IndependentRenders independent_renders(const std::function<RenderOutput(std::uint64_t)>& render,
                                        int runs);
+
+/// `render()` run twice, with at most one thread and then at most two: determinism tests
+/// compare the two results bit for bit.
+template <typename Render>
+auto at_one_and_two_threads(Render&& render) {
+    using Result = decltype(render());
+    std::pair<Result, Result> results;
+    {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+        results.first = render();
+    }
+    {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+        results.second = render();
+    }
+    return results;
+}
 
 /// A smooth image with distinct values in every pixel and channel (exact round-trip tests).
 Image ramp_image(int w, int h, int channels, float offset);
