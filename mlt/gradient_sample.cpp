@@ -87,7 +87,8 @@ bool light_path_in_camera_order(const Scene& scene, const std::vector<BdptVertex
         path.vertices.push_back(v);
         from = lv.p;
     }
-    // The light's point as a surface hit: the segment from light vertex 1 reached it.
+    // The light's point as a surface hit: the segment from light vertex 1 reached it. (A
+    // sphere light's sampled point and the intersection differ by ~1e-3 of the distance.)
     const BdptVertex& first = light[1];
     const Vec3f d = origin.p - first.p;
     const float distance = d.norm();
@@ -96,7 +97,7 @@ bool light_path_in_camera_order(const Scene& scene, const std::vector<BdptVertex
     const SurfaceInteraction hit = scene.intersect(ray);
     if (!hit.valid() ||
         scene.shapes()[static_cast<std::size_t>(hit.shape)].emitter() != origin.emitter ||
-        (hit.p - origin.p).norm() > 1e-3f * distance)
+        (hit.p - origin.p).norm() > 1e-2f * distance)
         return false;
     PathVertex end;
     end.si = hit;

@@ -19,26 +19,6 @@
 namespace gdmlt {
 namespace {
 
-/// A box lit only by a small emitting sphere sealed in a glass ball (caustic_glass_light in
-/// miniature): next-event estimation from the walls is always blocked by the glass, so the
-/// light arrives through light tracing, connections of light subpaths that crossed the glass,
-/// and camera paths that hit the light through it.
-std::string sealed_light_box_xml(int resolution) {
-    return test::sensor_xml(resolution, 39.3f, "0, 0, 3.9") + R"(
-        <bsdf type="diffuse" id="white"><rgb name="reflectance" value="0.725, 0.71, 0.68"/></bsdf>
-        <bsdf type="diffuse" id="red"><rgb name="reflectance" value="0.63, 0.065, 0.05"/></bsdf>
-        <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="-90"/><translate y="-1"/></transform><ref id="white"/></shape>
-        <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="90"/><translate y="1"/></transform><ref id="white"/></shape>
-        <shape type="rectangle"><transform name="to_world"><translate z="-1"/></transform><ref id="white"/></shape>
-        <shape type="rectangle"><transform name="to_world"><rotate y="1" angle="90"/><translate x="-1"/></transform><ref id="red"/></shape>
-        <shape type="rectangle"><transform name="to_world"><rotate y="1" angle="-90"/><translate x="1"/></transform><ref id="white"/></shape>
-        <shape type="sphere"><point name="center" value="0, 0.45, 0"/><float name="radius" value="0.06"/>
-            <emitter type="area"><rgb name="radiance" value="60, 50, 40"/></emitter></shape>
-        <shape type="sphere"><point name="center" value="0, 0.45, 0"/><float name="radius" value="0.25"/>
-            <bsdf type="dielectric"><float name="int_ior" value="1.5"/></bsdf></shape>
-        <shape type="cube"><transform name="to_world"><scale value="0.3"/><rotate y="1" angle="-18"/><translate value="0.35, -0.7, 0.3"/></transform><ref id="white"/></shape>)";
-}
-
 struct PixelPair {
     int x, y;
     Vec2i offset;
@@ -93,7 +73,7 @@ TEST(BidirectionalGradients, DifferencesMatchBdptWithTheLightSealedInGlass) {
     // Every path's light crossed the glass: connections and light tracing carry it. (Pixels
     // that see the light through the glass are left out: their rare, very bright samples make
     // a standard error from 20000 samples unreliable; at 200000 they agree, z 0.5.)
-    const Scene scene = test::scene_from_xml(sealed_light_box_xml(16));
+    const Scene scene = test::scene_from_xml(test::sealed_light_box_xml(16));
     check_bidirectional_differences(
         scene,
         {{7, 9, Vec2i(1, 0)}, {4, 12, Vec2i(0, 1)}, {9, 5, Vec2i(0, 1)}, {11, 13, Vec2i(1, 1)}},
@@ -201,7 +181,7 @@ void check_shifted_light_tracing(const Scene& scene) {
 
 TEST(BidirectionalGradients, ShiftedLightTracingDifferencesMatchItsPixelValuesThroughGlass) {
     // Light tracing carries the caustics of the sealed light: shifts walk the glass.
-    check_shifted_light_tracing(test::scene_from_xml(sealed_light_box_xml(8)));
+    check_shifted_light_tracing(test::scene_from_xml(test::sealed_light_box_xml(8)));
 }
 
 TEST(BidirectionalGradients, ShiftedLightTracingDifferencesMatchItsPixelValuesInADiffuseBox) {
@@ -257,11 +237,11 @@ TEST(GdmltBidirectional, L2ImageConvergesToThePathTracersWithAGlassSphere) {
 TEST(GdmltBidirectional, L2ImageConvergesToThePathTracersWithTheLightSealedInGlass) {
     // Light tracing unshifted (added after the solve). The path tracer's reference is noisy
     // here (it reaches the light only through the glass by BSDF sampling): measured 0.013.
-    check_l2_image(test::scene_from_xml(sealed_light_box_xml(16)), 10, 0.03, false);
+    check_l2_image(test::scene_from_xml(test::sealed_light_box_xml(16)), 10, 0.03, false);
 }
 
 TEST(GdmltBidirectional, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
-    const Scene scene = test::scene_from_xml(sealed_light_box_xml(12));
+    const Scene scene = test::scene_from_xml(test::sealed_light_box_xml(12));
     mlt::GdmltSettings s = bidirectional_gdmlt(4, 16);
     s.shift_light_tracing = true;
     s.chains = 40;

@@ -50,6 +50,22 @@ std::string cornell_box_xml(int resolution, bool glass_sphere) {
     return xml;
 }
 
+std::string sealed_light_box_xml(int resolution) {
+    return sensor_xml(resolution, 39.3f, "0, 0, 3.9") + R"(
+        <bsdf type="diffuse" id="white"><rgb name="reflectance" value="0.725, 0.71, 0.68"/></bsdf>
+        <bsdf type="diffuse" id="red"><rgb name="reflectance" value="0.63, 0.065, 0.05"/></bsdf>
+        <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="-90"/><translate y="-1"/></transform><ref id="white"/></shape>
+        <shape type="rectangle"><transform name="to_world"><rotate x="1" angle="90"/><translate y="1"/></transform><ref id="white"/></shape>
+        <shape type="rectangle"><transform name="to_world"><translate z="-1"/></transform><ref id="white"/></shape>
+        <shape type="rectangle"><transform name="to_world"><rotate y="1" angle="90"/><translate x="-1"/></transform><ref id="red"/></shape>
+        <shape type="rectangle"><transform name="to_world"><rotate y="1" angle="-90"/><translate x="1"/></transform><ref id="white"/></shape>
+        <shape type="sphere"><point name="center" value="0, 0.45, 0"/><float name="radius" value="0.06"/>
+            <emitter type="area"><rgb name="radiance" value="60, 50, 40"/></emitter></shape>
+        <shape type="sphere"><point name="center" value="0, 0.45, 0"/><float name="radius" value="0.25"/>
+            <bsdf type="dielectric"><float name="int_ior" value="1.5"/></bsdf></shape>
+        <shape type="cube"><transform name="to_world"><scale value="0.3"/><rotate y="1" angle="-18"/><translate value="0.35, -0.7, 0.3"/></transform><ref id="white"/></shape>)";
+}
+
 PixelStatistics pixel_statistics(const std::vector<float>& rgb, int channel) {
     const std::size_t n = rgb.size() / 3;
     double sum = 0.0, sum2 = 0.0;

@@ -22,6 +22,12 @@ std::string sensor_xml(int resolution, float fov_deg, const std::string& origin,
 /// sphere when `glass_sphere`), camera included, at `resolution`^2 pixels.
 std::string cornell_box_xml(int resolution, bool glass_sphere = false);
 
+/// A box lit only by a small emitting sphere sealed in a glass ball (caustic_glass_light in
+/// miniature): next-event estimation from the walls is always blocked by the glass, so the
+/// light arrives through light tracing, connections of light subpaths that crossed the glass,
+/// and camera paths that hit the light through it.
+std::string sealed_light_box_xml(int resolution);
+
 /// Mean and standard error of the pixel means of a 3-channel image over channel `c`.
 struct PixelStatistics {
     double mean = 0.0;
