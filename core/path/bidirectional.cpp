@@ -514,8 +514,10 @@ float light_tracing_mis_weight(const Scene& scene, const std::vector<BdptVertex>
     BdptVertex pinhole;
     pinhole.kind = BdptVertex::Kind::Camera;
     pinhole.p = scene.camera().position();
-    const std::vector<BdptVertex> camera{pinhole};
-    return mis_weight(scene, light, camera, nullptr, &pinhole, s, 1, power_heuristic,
+    // With t = 1 the weight reads camera vertex 0 only, and that is `pinhole`: no camera
+    // subpath (this runs per light tracing term and link, so no allocation either).
+    static const std::vector<BdptVertex> kNoCameraSubpath;
+    return mis_weight(scene, light, kNoCameraSubpath, nullptr, &pinhole, s, 1, power_heuristic,
                       scratch.light_mis, scratch.camera_mis);
 }
 
