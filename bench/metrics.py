@@ -24,6 +24,30 @@ def read_rgb(path, layer=""):
     return np.asarray(pixels)[:, :, idx].astype(np.float64)
 
 
+LUMINANCE = (0.212671, 0.715160, 0.072169)  # Rec. 709, as core/math/types.h luminance()
+
+
+def read_luminance(path, layer):
+    """HxW luminance of an RGB layer, or the layer itself when it has one channel (`name.Y`,
+    e.g. the variance layers, which hold the variance of the luminance)."""
+    buf = oiio.ImageBuf(path)
+    names = list(buf.spec().channelnames)
+    pixels = np.asarray(buf.get_pixels(oiio.FLOAT)).astype(np.float64)
+    if f"{layer}.Y" in names:
+        return pixels[:, :, names.index(f"{layer}.Y")]
+    rgb = read_rgb(path, layer)
+    return rgb @ np.array(LUMINANCE)
+
+
+def write_rgb(path, image):
+    """Writes an HxWx3 array as a float RGB EXR."""
+    spec = oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT)
+    buf = oiio.ImageBuf(spec)
+    buf.set_pixels(oiio.ROI(), np.ascontiguousarray(image, dtype=np.float32))
+    if not buf.write(path):
+        raise RuntimeError(f"{path}: {buf.geterror()}")
+
+
 def rel_mse(image, reference):
     return float(np.mean((image - reference) ** 2 / (reference ** 2 + 0.01)))
 
