@@ -26,14 +26,13 @@
 #include <benchmark/benchmark.h>
 
 #include <cstdint>
-#include <cstdlib>
 #include <exception>
 #include <iterator>
-#include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "bench/bench_scene.h"
 #include "core/path/path.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/sample_stream.h"
@@ -41,10 +40,6 @@
 #include "core/scene/scene_desc.h"
 #include "manifold/shift.h"
 #include "mlt/gdmlt.h"
-
-#ifndef GDMLT_SOURCE_DIR
-#define GDMLT_SOURCE_DIR "."
-#endif
 
 namespace {
 
@@ -69,38 +64,10 @@ struct Workload {
     std::string error;                    // non-empty: the workload could not be built
 };
 
-std::string env_or(const char* name, const std::string& fallback) {
-    const char* value = std::getenv(name);
-    return value && *value ? std::string(value) : fallback;
-}
-
-/// "a=1,b=2" -> {a: 1, b: 2}; empty items are skipped.
-std::map<std::string, std::string> parse_defines(const std::string& text) {
-    std::map<std::string, std::string> defines;
-    std::size_t begin = 0;
-    while (begin <= text.size()) {
-        std::size_t end = text.find(',', begin);
-        if (end == std::string::npos) end = text.size();
-        const std::string item = text.substr(begin, end - begin);
-        if (!item.empty()) {
-            const std::size_t eq = item.find('=');
-            if (eq == std::string::npos || eq == 0)
-                throw InputError("GDMLT_BENCH_DEFINES expects name=value, got '" + item + "'");
-            defines[item.substr(0, eq)] = item.substr(eq + 1);
-        }
-        begin = end + 1;
-    }
-    return defines;
-}
-
 Workload make_workload() {
     Workload w;
     try {
-        const std::string scene_path =
-            env_or("GDMLT_BENCH_SCENE", GDMLT_SOURCE_DIR "/scenes/cbox_glass_sphere.xml");
-        ParseOptions options;
-        options.defines = parse_defines(env_or("GDMLT_BENCH_DEFINES", ""));
-        w.scene = std::make_unique<Scene>(build_scene(parse_scene_file(scene_path, options)));
+        w.scene = std::make_unique<Scene>(bench::load_bench_scene("scenes/cbox_glass_sphere.xml"));
         // The path settings as the CLI's gdmlt derives them from the scene's integrator.
         PathSamplerSettings settings = mlt::gdmlt_settings_from_scene(w.scene->integrator()).path;
         if (settings.max_depth < 0) settings.max_depth = kDefaultMaxDepth;

@@ -7,7 +7,8 @@ A benchmark, not a test: it builds nothing and asserts nothing. It prints
 1. samples/s and rays/s of `gdmlt render` (median, min and max over --runs renders of
    the scene at max_depth, spp, resolution and thread count given), read from the `--stats`
    JSON the CLI writes (render time only: scene loading and image output are excluded);
-2. the fraction of the path tracer's work spent inside Embree (see "Embree fraction" below);
+2. the fraction of the path tracer's work spent inside Embree (see "Embree fraction" below),
+   and raw Embree's own rate on the same scene (see "Raw Embree");
 3. when Mitsuba 3 can be imported (by this interpreter or by --mitsuba-python), Mitsuba's
    samples/s on the same scene file with the same resolution, spp, max_depth and thread
    count, rendered in the same run and interleaved with ours (one of theirs after each of
@@ -35,6 +36,15 @@ relocation of the image libraries, which would otherwise dilute the share). This
 time, with sampling noise of about 1/sqrt(samples).
 
 "both" runs the two; "none" skips the measurement.
+
+Raw Embree
+----------
+`bench_embree` (Google Benchmark, built beside gdmlt) traces camera, bounce (cosine about the
+normal) and shadow rays precomputed on the same scene and resolution through the same Embree
+calls as the renderer, at the same thread count, and gives rays/s per kind. The path tracer's
+rays of each run, at those rates, would take T_raw seconds; the line "path tracer at X of raw
+Embree" gives T_raw / render_s (median over runs): the share of the render an Embree-only
+renderer would still need, i.e. our rays/s over raw Embree's for the same ray mix.
 
 Mitsuba
 -------
@@ -91,7 +101,10 @@ def render(seed):
     dr.eval(img)
     if hasattr(dr, "sync_thread"):
         dr.sync_thread()
-    img.numpy()  # forces evaluation on every variant
+    try:
+        img.numpy()  # forces evaluation on every variant
+    except Exception:  # no numpy in that interpreter: dr.eval and sync_thread above waited
+        pass
     return time.perf_counter() - t0
 warmup = render(1000)
 print(json.dumps({"ready": True, "variant": variant, "note": note, "version": mi.__version__,
@@ -223,6 +236,26 @@ class MitsubaWorker:
             self.proc.wait(timeout=60)
 
 
+def raw_embree(args) -> dict:
+    """rays/s per kind (camera, bounce, shadow) of bench_embree at args.threads threads."""
+    if not Path(args.bench_embree).exists():
+        return {"error": f"{args.bench_embree} not found"}
+    env = dict(os.environ, GDMLT_BENCH_SCENE=str(args.scene),
+               GDMLT_BENCH_DEFINES=f"res={args.res},max_depth={args.max_depth}")
+    out = subprocess.run([args.bench_embree, "--benchmark_format=json", "--benchmark_min_time=0.5",
+                          f"--benchmark_filter=threads:{args.threads}$"],
+                         capture_output=True, text=True, env=env)
+    if out.returncode != 0:
+        return {"error": out.stderr.strip()[-300:]}
+    rates = {}
+    for b in json.loads(out.stdout)["benchmarks"]:
+        kind = b["name"].split("/")[1]
+        rates[kind] = b["items_per_second"]
+    if set(rates) != {"camera", "bounce", "shadow"}:
+        return {"error": f"unexpected benchmarks {sorted(rates)}"}
+    return {"rays_per_s": rates}
+
+
 def summary(values: list[float]) -> str:
     return (f"median {statistics.median(values):.4g}  (min {min(values):.4g}, "
             f"max {max(values):.4g}, n={len(values)})")
@@ -245,9 +278,13 @@ def main() -> int:
     ap.add_argument("--mitsuba-python", default=sys.executable,
                     help="interpreter that can import mitsuba (e.g. a venv's python)")
     ap.add_argument("--mitsuba-variant", default="llvm_ad_rgb")
+    ap.add_argument("--bench-embree", default=None,
+                    help="bench_embree executable (default: bench/ beside --gdmlt)")
     ap.add_argument("--json", type=Path, help="also write all numbers here")
     args = ap.parse_args()
     args.scene = args.scene.resolve()
+    if args.bench_embree is None:
+        args.bench_embree = str(Path(args.gdmlt).resolve().parent / "bench" / "bench_embree")
     if not Path(args.gdmlt).exists():
         print(f"gdmlt binary not found: {args.gdmlt} (build it first)", file=sys.stderr)
         return 2
@@ -272,9 +309,10 @@ def main() -> int:
 
     with tempfile.TemporaryDirectory(prefix="gdmlt_throughput_") as tmp:
         out_dir = Path(tmp)
-        ours_sps, ours_rps, theirs_sps = [], [], []
+        ours_sps, ours_rps, theirs_sps, all_stats = [], [], [], []
         for run in range(args.runs):
             stats = run_gdmlt(args, out_dir, run)
+            all_stats.append(stats)
             ours_sps.append(stats["samples_per_s"])
             ours_rps.append(stats["rays"]["per_s"])
             line = (f"  run {run}: gdmlt {stats['samples_per_s'] / 1e6:.3f} M samples/s, "
@@ -298,6 +336,19 @@ def main() -> int:
                   f"{summary(per_run)}")
             result["mitsuba"] = dict(mitsuba.info, samples_per_s=theirs_sps, ratio=ratio,
                                      ratio_per_run=per_run)
+
+        raw = raw_embree(args)
+        result["raw_embree"] = raw
+        if "error" in raw:
+            print(f"raw Embree: not measured ({raw['error']})")
+        else:
+            rates = raw["rays_per_s"]
+            shares = [sum(s["rays"][k] / rates[k] for k in rates) / s["render_s"] for s in all_stats]
+            raw["path_share_of_raw"] = shares
+            print(f"raw Embree (bench_embree, {args.threads} threads): " +
+                  ", ".join(f"{k} {v / 1e6:.2f}" for k, v in rates.items()) + " M rays/s")
+            print(f"path tracer at {statistics.median(shares):.1%} of raw Embree (its rays at raw "
+                  f"Embree's rates / its render time; per run {summary(shares)})")
 
         methods = {"both": ["callgrind", "perf"], "none": []}.get(args.embree_fraction,
                                                                    [args.embree_fraction])

@@ -1,0 +1,131 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// Raw Embree on our scenes: the ray rate the renderer could reach if it did nothing but trace
+// (issue "throughput": the path tracer's rays/s is stated as a fraction of it). Each benchmark
+// iteration is one query of a precomputed ray through Accelerator (a struct copy around
+// rtcIntersect1 / rtcOccluded1, the calls the renderer makes), so items_per_second is rays per
+// second; run with --benchmark_filter and compare at the renderer's thread count (the `/threads:2`
+// rows are two threads querying the same BVH, the rate summed over both).
+//
+// Workload (built once per process, fixed seed, untimed), in the proportions of a path tracer:
+//   camera    - camera rays through uniformly random film positions (coherent-ish);
+//   bounce    - from the hit points of those rays, cosine-distributed directions about the
+//               geometric normal on the camera's side (incoherent, like diffuse bounces);
+//   shadow    - from the same points to a point chosen by Scene::sample_emitter (occlusion
+//               queries stopping short of the light, like next-event estimation).
+// Scene: GDMLT_BENCH_SCENE / GDMLT_BENCH_DEFINES (bench/bench_scene.h), default scenes/cbox.xml.
+#include <benchmark/benchmark.h>
+
+#include <exception>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bench/bench_scene.h"
+#include "core/accel/accelerator.h"
+#include "core/math/frame.h"
+#include "core/sampling/rng.h"
+#include "core/sampling/sample_stream.h"
+#include "core/sampling/warp.h"
+
+namespace {
+
+using namespace gdmlt;
+
+constexpr int kRays = 1 << 18;
+constexpr std::uint64_t kSeed = 20261202;
+
+struct Workload {
+    std::unique_ptr<Scene> scene;
+    std::unique_ptr<Accelerator> accelerator;  // our own, over the scene's shapes
+    std::vector<Ray> camera, bounce, shadow;
+    std::string error;
+};
+
+Workload make_workload() {
+    Workload w;
+    try {
+        w.scene = std::make_unique<Scene>(bench::load_bench_scene("scenes/cbox.xml"));
+        w.accelerator = std::make_unique<Accelerator>(w.scene->shapes());
+        const Film& film = w.scene->camera().film();
+        for (std::uint64_t i = 0; static_cast<int>(w.camera.size()) < kRays; ++i) {
+            if (i > static_cast<std::uint64_t>(kRays) * 64)
+                throw InputError("too few camera rays hit the scene");
+            IndependentStream stream(derive_stream(kSeed, i));
+            const Vec2f u = stream.next_2d();
+            const Ray ray = w.scene->camera().generate_ray(Vec2f(
+                u.x() * static_cast<float>(film.width), u.y() * static_cast<float>(film.height)));
+            const SurfaceInteraction si = w.scene->intersect(ray);
+            if (!si.valid()) continue;
+            w.camera.push_back(ray);
+            // Bounce: cosine about the geometric normal turned towards the camera.
+            const Vec3f n =
+                si.n_geometric.dot(ray.direction) < 0.f ? si.n_geometric : Vec3f(-si.n_geometric);
+            const Vec3f direction =
+                Frame::from_normal(n).to_world(warp::square_to_cosine_hemisphere(stream.next_2d()));
+            w.bounce.push_back(spawn_ray(si.p, si.n_geometric, direction));
+            // Shadow: to a sampled emitter point, stopping short of it.
+            const EmitterSample light =
+                w.scene->sample_emitter(si.p, stream.next_1d(), stream.next_2d());
+            if (light.valid()) {
+                Ray r = spawn_ray(si.p, si.n_geometric, light.wi);
+                r.t_max = light.distance * (1.f - kShadowRayShorten);
+                w.shadow.push_back(r);
+            }
+        }
+        if (w.shadow.empty()) throw InputError("the scene has no emitter to cast shadow rays to");
+    } catch (const std::exception& e) {
+        w.error = e.what();
+    }
+    return w;
+}
+
+const Workload& workload() {
+    static const Workload w = make_workload();
+    return w;
+}
+
+enum class Kind { Camera, Bounce, Shadow };
+
+void BM_Embree(benchmark::State& state, Kind kind) {
+    const Workload& w = workload();
+    if (!w.error.empty()) {
+        state.SkipWithError(w.error.c_str());
+        return;
+    }
+    const std::vector<Ray>& rays = kind == Kind::Camera   ? w.camera
+                                   : kind == Kind::Bounce ? w.bounce
+                                                          : w.shadow;
+    // Threads start at different places so that they do not trace the same ray at once.
+    std::size_t i =
+        (rays.size() / 2) * static_cast<std::size_t>(state.thread_index()) % rays.size();
+    std::int64_t hits = 0;
+    for (auto _ : state) {
+        if (kind == Kind::Shadow) {
+            hits += w.accelerator->occluded(rays[i]) ? 1 : 0;
+        } else {
+            const RayHit hit = w.accelerator->intersect(rays[i]);
+            hits += hit.valid() ? 1 : 0;
+        }
+        if (++i == rays.size()) i = 0;
+    }
+    benchmark::DoNotOptimize(hits);
+    state.SetItemsProcessed(state.iterations());
+    state.counters["hit_rate"] =
+        benchmark::Counter(static_cast<double>(hits) / static_cast<double>(state.iterations()),
+                           benchmark::Counter::kAvgThreads);
+}
+
+[[maybe_unused]] const bool kRegistered = [] {
+    const std::pair<const char*, Kind> kinds[] = {
+        {"camera", Kind::Camera}, {"bounce", Kind::Bounce}, {"shadow", Kind::Shadow}};
+    for (const auto& [name, kind] : kinds)
+        benchmark::RegisterBenchmark((std::string("BM_Embree/") + name).c_str(), BM_Embree, kind)
+            ->Threads(1)
+            ->Threads(2)
+            ->UseRealTime();
+    return true;
+}();
+
+}  // namespace
+
+BENCHMARK_MAIN();
