@@ -242,6 +242,15 @@ def rate_of(integrator, stats):
     return stats.get("samples_per_s")
 
 
+def pyplot():
+    """matplotlib.pyplot without a display (imported on first use: the helpers above need
+    only numpy)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
 def tonemap(image, exposure=1.0):
     """sRGB-ish 8-bit preview (clamped, gamma 2.2) of a linear HxWx3 image."""
     return np.clip(np.nan_to_num(image * exposure) ** (1.0 / 2.2), 0.0, 1.0)
@@ -416,6 +425,13 @@ class Study:
         image = metrics.read_rgb(exr, layer)
         return {"rel_mse": metrics.rel_mse(image, reference), "mean_ratio": float(image.mean() / reference.mean())}
 
+    def save(self, fig, name):
+        """Writes a figure beside the report; returns its name (the report links it)."""
+        fig.tight_layout()
+        fig.savefig(os.path.join(self.out, name), dpi=90)
+        pyplot().close(fig)
+        return name
+
     # ---- section 1 ----
 
     def equal_time(self):
@@ -470,9 +486,7 @@ class Study:
         return "\n".join(text)
 
     def plot_curves(self, rows):
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot()
         import matplotlib.ticker
         scenes = list(dict.fromkeys(r["scene"] for r in rows))
         fig, axes = plt.subplots(1, len(scenes), figsize=(4.2 * len(scenes), 3.6), squeeze=False)
@@ -490,16 +504,10 @@ class Study:
             ax.set_ylabel("relMSE")
             ax.grid(True, which="both", alpha=0.3)
         axes[0][0].legend(fontsize=7)
-        fig.tight_layout()
-        name = "equal_time_curves.png"
-        fig.savefig(os.path.join(self.out, name), dpi=90)
-        plt.close(fig)
-        return name
+        return self.save(fig, "equal_time_curves.png")
 
     def plot_montage(self, runs):
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot()
         scenes = list(dict.fromkeys(r["scene"] for r in runs))
         budget = self.mode["times"][-1]
         renderers = list(dict.fromkeys(r["integrator"] for r in runs))
@@ -523,11 +531,7 @@ class Study:
                 ax.set_title(label, fontsize=7)
             axes[i][0].set_ylabel(scene, fontsize=7)
         fig.suptitle(f"centre crops at {budget:g} s, seed 0 (relMSE of the whole image)", fontsize=8)
-        fig.tight_layout()
-        name = "equal_time_crops.png"
-        fig.savefig(os.path.join(self.out, name), dpi=90)
-        plt.close(fig)
-        return name
+        return self.save(fig, "equal_time_crops.png")
 
     # ---- section 2 ----
 
@@ -549,7 +553,10 @@ class Study:
                                      ("1/256,1/16", ["--mutation-size", "0.00390625", "0.0625"])]),
             ("neighbours", [("lattice (default)", []), ("adap K=4", ["--neighbours", "adap"]),
                             ("adap K=2", ["--neighbours", "adap", "--adap-k", "2"]),
-                            ("adap K=8", ["--neighbours", "adap", "--adap-k", "8"])]),
+                            ("adap K=8", ["--neighbours", "adap", "--adap-k", "8"]),
+                            ("adap bandwidths x0.5", ["--neighbours", "adap", "--adap-sigma", "0.05", "0.1", "0.025",
+                                                      "0.25"]),
+                            ("adap bandwidths x2", ["--neighbours", "adap", "--adap-sigma", "0.2", "0.4", "0.1", "1"])]),
             ("samples", [("unidirectional (default)", []), ("bidirectional", ["--bidirectional", "true"])]),
         ]
         rows, default_raw = [], None
@@ -579,7 +586,8 @@ class Study:
         figure = self.plot_knobs(rows, recon)
         text = [f"GDMLT on `{scene_name(scene)}` at {seconds:g} s (medians of {self.mode['knob_seeds']} seeds); "
                 "rate: proposals per second of the chains, also as a ratio to the default (the time side of "
-                "the price: at equal time a slower setting runs fewer proposals).", "",
+                "the price: at equal time a slower setting runs fewer proposals). Each group renders its default again: the "
+                "spread of those rows is the run-to-run noise a setting's difference must beat.", "",
                 md_table(["knob", "setting", "relMSE", "mean", "proposals/s", "rate / default", "shift ok"],
                          [[r["knob"], r["setting"], r["rel_mse"], r["mean_ratio"], r["rate"], r["rate_vs_default"],
                            r["shift_ok"]] for r in rows]), "",
@@ -628,9 +636,7 @@ class Study:
         return rows
 
     def plot_knobs(self, rows, recon):
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot()
         fig, axes = plt.subplots(1, 2, figsize=(11, 4))
         ax = axes[0]
         for group in dict.fromkeys(r["knob"] for r in rows):
@@ -651,11 +657,7 @@ class Study:
         ax.set_ylabel("relMSE")
         ax.set_title("reconstruction settings on one raw render", fontsize=9)
         ax.grid(True, alpha=0.3)
-        fig.tight_layout()
-        name = "knobs.png"
-        fig.savefig(os.path.join(self.out, name), dpi=90)
-        plt.close(fig)
-        return name
+        return self.save(fig, "knobs.png")
 
     # ---- section 3 ----
 
@@ -700,8 +702,9 @@ class Study:
                 "one pixel right, untimed round trip back).", "",
                 "- similarity: summed variance of the differences / summed variance of the primal (per "
                 "direction): 2 = uncorrelated offsets, 0 = perfectly correlated; lower is better.",
-                "- correctness: squared error of the differences against those of an independent GDPT "
-                "primal (seed 1), over the sum of the variances both renders estimated (sums over edges, "
+                "- correctness: squared error of the differences against the pixel differences of an "
+                "independent path-traced estimate (the primal of a GDPT render with seed 1: its base paths "
+                "are path tracing's), over the sum of the variances both renders estimated (sums over edges, "
                 "median of dx and dy): 1 = unbiased within the noise of this many samples, a bias makes it "
                 "larger, more so with more samples. (Not against the reference: its pixel noise would "
                 "swamp differences that have far less.)",
@@ -725,9 +728,7 @@ class Study:
         return self.independent[scene]
 
     def plot_shifts(self, rows):
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot()
         scenes = list(dict.fromkeys(r["scene"] for r in rows))
         fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
         width = 0.8 / len(SHIFT_FAMILIES)
@@ -742,11 +743,7 @@ class Study:
             ax.set_xticklabels(scenes, rotation=20, fontsize=6)
             ax.set_title(label, fontsize=9)
         axes[0].legend(fontsize=6)
-        fig.tight_layout()
-        name = "shift_families.png"
-        fig.savefig(os.path.join(self.out, name), dpi=90)
-        plt.close(fig)
-        return name
+        return self.save(fig, "shift_families.png")
 
     # ---- section 4 ----
 
@@ -905,9 +902,7 @@ class Study:
         return "\n".join(text)
 
     def plot_shares(self, rows):
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot()
         labels = [f"{r['scene']}\n{r['integrator']}" for r in rows]
         fig, ax = plt.subplots(figsize=(max(6, 0.45 * len(rows)), 3.6))
         bottom = np.zeros(len(rows))
@@ -920,11 +915,7 @@ class Study:
         ax.set_xticklabels(labels, rotation=90, fontsize=5)
         ax.set_ylabel("share of render time")
         ax.legend(fontsize=6)
-        fig.tight_layout()
-        name = "time_shares.png"
-        fig.savefig(os.path.join(self.out, name), dpi=90)
-        plt.close(fig)
-        return name
+        return self.save(fig, "time_shares.png")
 
     # ---- report ----
 
@@ -934,8 +925,11 @@ class Study:
         try:
             steps = [(1, self.equal_time), (2, self.knobs), (3, self.shift_table), (4, self.reconstruction_table),
                      (5, self.adap), (6, self.what_ran_section)]
+            wanted = set(self.args.sections or SECTION_TITLES)
+            if 6 in wanted:
+                wanted.add(1)  # what ran is read from section 1's renders
             for number, step in steps:
-                if self.args.sections and number not in self.args.sections:
+                if number not in wanted:
                     continue
                 self.log(f"section {number}: {SECTION_TITLES[number]}")
                 sections[number] = step()
@@ -968,8 +962,10 @@ class Study:
             noise = info.get("noise_rel_mse")
             lines.append(f"- {name}: {info.get('made_by') or info.get('source')}"
                          + (f", own noise relMSE ~{noise:.2g}" if noise is not None else ""))
+        mode = "--quick " if self.args.quick else ""
         for number in sorted(sections):
-            lines += ["", f"## {number}. {SECTION_TITLES[number]}", "", sections[number]]
+            lines += ["", f"## {number}. {SECTION_TITLES[number]}", "", sections[number], "",
+                      f"This section alone: `bench/study.py {mode}--sections {number}`."]
         return "\n".join(lines) + "\n"
 
 
