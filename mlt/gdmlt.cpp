@@ -191,6 +191,7 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
         b.very_direct = d.image;
         out.stats.very_direct_s = seconds_since(start);
         out.stats.counters += d.stats.counters;
+        out.stats.nonfinite_dropped += d.stats.nonfinite_samples_dropped;
     }
 
     // 2. The chains.
@@ -204,9 +205,11 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
     const ChainRunnerOutput chains = run_chains(target, runner, cancel, progress);
     const PathCounters direct_counters = out.stats.counters;
     const double very_direct_s = out.stats.very_direct_s;
+    const std::uint64_t direct_nonfinite = out.stats.nonfinite_dropped;
     static_cast<ChainStats&>(out.stats) = chains.stats;
     out.stats.counters += direct_counters;
     out.stats.very_direct_s = very_direct_s;
+    out.stats.nonfinite_dropped += direct_nonfinite;
     if (!(chains.stats.b > 0.0))
         std::cerr << "gdmlt: every bootstrap sample had a zero target; only very direct light "
                      "remains\n";
