@@ -920,8 +920,11 @@ class Study:
     # ---- report ----
 
     def run(self):
+        """Runs the sections and writes the report. Ctrl-C (or a failing section) still writes
+        the report of the sections that finished, saying where it stopped; the exit status is
+        then 130 (or the failure is raised again)."""
         self.start_mitsuba()
-        sections = {}
+        sections, stopped, failure = {}, None, None
         try:
             steps = [(1, self.equal_time), (2, self.knobs), (3, self.shift_table), (4, self.reconstruction_table),
                      (5, self.adap), (6, self.what_ran_section)]
@@ -932,22 +935,36 @@ class Study:
                 if number not in wanted:
                     continue
                 self.log(f"section {number}: {SECTION_TITLES[number]}")
-                sections[number] = step()
+                try:
+                    sections[number] = step()
+                except (KeyboardInterrupt, Exception) as e:  # noqa: B902 - reported, then re-raised
+                    # Ctrl-C reaches gdmlt too, which stops and exits 130: either may arrive first.
+                    if isinstance(e, subprocess.CalledProcessError) and e.returncode in (130, -2):
+                        e = KeyboardInterrupt()
+                    stopped = (f"interrupted (Ctrl-C) during section {number}" if isinstance(e, KeyboardInterrupt)
+                               else f"section {number} failed: {type(e).__name__}: {e}")
+                    failure = e
+                    break
         finally:
             if self.runner is not None:
                 self.mitsuba_info = dict(self.mitsuba_info, variant=self.runner.info.get("variant"))
                 self.runner.close()
         self.data["mitsuba"] = self.mitsuba_info
         self.data["elapsed_s"] = time.perf_counter() - self.started
-        report = self.report(sections)
+        self.data["stopped"] = stopped
+        report = self.report(sections, stopped)
         with open(os.path.join(self.out, "report.md"), "w") as f:
             f.write(report)
         with open(os.path.join(self.out, "study.json"), "w") as f:
             json.dump(self.data, f, indent=1, default=float)
             f.write("\n")
-        self.log(f"report: {os.path.join(self.out, 'report.md')}")
+        self.log(f"report: {os.path.join(self.out, 'report.md')}" + (f" ({stopped})" if stopped else ""))
+        if isinstance(failure, KeyboardInterrupt):
+            raise SystemExit(130)
+        if failure is not None:
+            raise failure
 
-    def report(self, sections):
+    def report(self, sections, stopped=None):
         version = subprocess.run([self.args.binary, "--version"], capture_output=True, text=True).stdout.strip()
         mi = self.mitsuba_info
         yardstick = (f"Mitsuba {mi.get('version')} ({mi.get('variant')}, {self.args.threads} threads) in the same run"
@@ -957,7 +974,10 @@ class Study:
                  f"{os.cpu_count()} cores, {self.args.threads} threads, {self.data['elapsed_s'] / 60:.1f} minutes. "
                  f"Yardstick: {yardstick}. Defines: {self.defines or 'none'}.", "",
                  "Times are this machine's at this moment: compare rows within this report, or through the "
-                 "mitsuba/x ratios across machines.", "", "References:", ""]
+                 "mitsuba/x ratios across machines.", ""]
+        if stopped:
+            lines += [f"**Incomplete: {stopped}.** The sections below are those that finished.", ""]
+        lines += ["References:", ""]
         for name, info in self.data["references"].items():
             noise = info.get("noise_rel_mse")
             lines.append(f"- {name}: {info.get('made_by') or info.get('source')}"

@@ -9,9 +9,11 @@ all six sections, each with measured numbers, its figures, and the JSON every se
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -19,17 +21,21 @@ sys.path.insert(0, os.path.join(ROOT, "bench"))
 import study  # noqa: E402
 
 
+def tiny_study(tmp):
+    """The study command on cbox at 24x24 with tiny budgets, writing below `tmp`."""
+    binary = os.environ.get("GDMLT_BINARY", os.path.join(ROOT, "build", "release", "gdmlt"))
+    return [sys.executable, os.path.join(ROOT, "bench", "study.py"), "--quick", "--binary", binary,
+            "--scenes", os.path.join(ROOT, "scenes", "cbox.xml"), "--times", "0.3", "--define", "res=24",
+            "--no-mitsuba", "--out", os.path.join(tmp, "study"), "--reference-cache", os.path.join(tmp, "refs"),
+            "--reference-spp", "32", "--timing-res", "48", "--bench-min-time", "0.002"]
+
+
 class QuickStudyOnATinyScene(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        binary = os.environ.get("GDMLT_BINARY", os.path.join(ROOT, "build", "release", "gdmlt"))
         cls.tmp = tempfile.TemporaryDirectory()
         cls.out = os.path.join(cls.tmp.name, "study")
-        cmd = [sys.executable, os.path.join(ROOT, "bench", "study.py"), "--quick", "--binary", binary,
-               "--scenes", os.path.join(ROOT, "scenes", "cbox.xml"), "--times", "0.3", "--define", "res=24",
-               "--no-mitsuba", "--out", cls.out, "--reference-cache", os.path.join(cls.tmp.name, "refs"),
-               "--reference-spp", "32", "--timing-res", "48", "--bench-min-time", "0.002"]
-        cls.proc = subprocess.run(cmd, capture_output=True, text=True)
+        cls.proc = subprocess.run(tiny_study(cls.tmp.name), capture_output=True, text=True)
 
     @classmethod
     def tearDownClass(cls):
@@ -91,6 +97,36 @@ class QuickStudyOnATinyScene(unittest.TestCase):
         for row in what_ran:
             self.assertFalse(row["manifold_solver"], row)
             self.assertEqual(row["manifold_walks"], 0, row)
+
+
+class ACtrlCDuringTheStudy(unittest.TestCase):
+    def test_still_writes_the_sections_that_finished_and_exits_130(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            # Its own process group, as a terminal's Ctrl-C reaches the script and its gdmlt
+            # child alike; SIGINT restored to the default in case this test runs with it
+            # ignored (a background job), which would keep Python from raising KeyboardInterrupt.
+            proc = subprocess.Popen(tiny_study(tmp) + ["--sections", "1", "2"], stdout=subprocess.PIPE,
+                                    stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                                    preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+            log = []
+            for line in proc.stdout:
+                log.append(line)
+                if "section 2:" in line:
+                    break
+            time.sleep(1.0)  # inside section 2's renders (about 20 of them, and a benchmark)
+            os.killpg(proc.pid, signal.SIGINT)
+            rest, _ = proc.communicate(timeout=120)
+            output = "".join(log) + rest
+            self.assertEqual(proc.returncode, 130, output[-3000:])
+            with open(os.path.join(tmp, "study", "report.md")) as f:
+                report = f.read()
+            self.assertIn("Incomplete: interrupted (Ctrl-C) during section 2", report)
+            self.assertRegex(report, r"(?m)^## 1\. ")
+            self.assertNotRegex(report, r"(?m)^## 2\. ")
+            with open(os.path.join(tmp, "study", "study.json")) as f:
+                data = json.load(f)
+            self.assertEqual(sorted(data["sections"]), ["1"])
+            self.assertTrue(data["sections"]["1"]["runs"])
 
 
 if __name__ == "__main__":
