@@ -62,6 +62,7 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
+import equal_time  # noqa: E402
 import metrics  # noqa: E402
 
 ROOT = os.path.dirname(HERE)
@@ -336,14 +337,10 @@ class Study:
                                            if f.endswith(".xml"))
         return [self.resolve_scene(n) for n in names]
 
-    def resolve_scene(self, name):
-        if name.endswith(".xml") and os.path.isfile(name):
-            return os.path.abspath(name)
-        for directory in (os.path.join(SHARED, "scenes"), os.path.join(ROOT, "scenes")):
-            path = os.path.join(directory, name + ".xml")
-            if os.path.isfile(path):
-                return path
-        raise SystemExit(f"scene {name!r} not found in ../shared/scenes or scenes/")
+    @staticmethod
+    def resolve_scene(name):
+        """A scene name (looked up in ../shared/scenes, then scenes/) or an .xml path."""
+        return equal_time.resolve_scene(name)
 
     def start_mitsuba(self):
         if self.args.no_mitsuba:
