@@ -199,7 +199,7 @@ def parse_reconstruct_seconds(line):
     return float(m.group(1)), float(m.group(2))
 
 
-STAGES = ("bootstrap_s", "very_direct_s", "feature_pass_s", "selection_s", "reconstruct_s")
+STAGES = ("bootstrap_s", "very_direct_s", "light_tracing_s", "feature_pass_s", "selection_s", "reconstruct_s")
 
 
 def what_ran(stats):
@@ -885,11 +885,13 @@ class Study:
                 "was in play (walks counted), shifts: offset paths were built, LT: light tracing, chains: Markov "
                 "chains. Shares: the stage's seconds over render_s (the rest is sampling).", "",
                 md_table(["scene", "integrator", "manifold", "walks", "Newton its", "shifts", "shift ok", "LT",
-                          "chains", "rays", "non-finite dropped", "bootstrap", "very direct", "reconstruct"],
+                          "chains", "rays", "non-finite dropped", "bootstrap", "very direct", "LT pass",
+                          "reconstruct"],
                          [[r["scene"], r["integrator"], r["manifold_solver"], r["manifold_walks"],
                            r["manifold_iterations"], r["shifts"], r["shift_ok_rate"], r["light_tracing"],
                            r["markov_chains"], r["rays"], r["nonfinite_dropped"], r.get("share_bootstrap_s"),
-                           r.get("share_very_direct_s"), r.get("share_reconstruct_s")] for r in rows]), "",
+                           r.get("share_very_direct_s"), r.get("share_light_tracing_s"),
+                           r.get("share_reconstruct_s")] for r in rows]), "",
                 "Why the manifold solver is (not) in play, per scene (gdmlt's stats):", ""]
         for r in rows:
             if r["integrator"] == "gdmlt":

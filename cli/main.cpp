@@ -76,6 +76,9 @@ struct RenderOptions {
     std::optional<int> direct_samples;
     std::optional<bool> bidirectional;
     std::optional<bool> shift_light_tracing;
+    std::optional<double> light_tracing_mis;
+    std::optional<bool> light_tracing_pass;
+    std::optional<double> light_tracing_share;
     // Gradient-domain knobs.
     std::string reconstruct_method;
     std::optional<double> alpha;
@@ -467,6 +470,9 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     if (options.primal_from_offsets) settings.primal_from_offsets = *options.primal_from_offsets;
     if (options.bidirectional) settings.bidirectional = *options.bidirectional;
     if (options.shift_light_tracing) settings.shift_light_tracing = *options.shift_light_tracing;
+    if (options.light_tracing_mis) settings.light_tracing_mis = *options.light_tracing_mis;
+    if (options.light_tracing_pass) settings.light_tracing_pass = *options.light_tracing_pass;
+    if (options.light_tracing_share) settings.light_tracing_share = *options.light_tracing_share;
     settings.time_budget_s = remaining_budget(options.time_s, setup);
     settings.seed = options.seed.value_or(scene.sampler().seed);
     if (options.max_depth) settings.path.max_depth = *options.max_depth;
@@ -490,6 +496,9 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
                 {"primal_from_offsets", settings.primal_from_offsets},
                 {"bidirectional", settings.bidirectional},
                 {"shift_light_tracing", settings.shift_light_tracing},
+                {"light_tracing_mis", settings.light_tracing_mis},
+                {"light_tracing_pass", settings.light_tracing_pass},
+                {"light_tracing_share", settings.light_tracing_share},
                 {"reconstruct", reconstruct::to_string(rc.method)},
                 {"alpha", rc.alpha},
                 {"coarse_radius", rc.coarse_radius},
@@ -517,6 +526,8 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     r.stats["render_s"] = setup.seconds + s.total_s + solve_s;
     r.stats["sampling_s"] = s.total_s;
     r.stats["very_direct_s"] = s.very_direct_s;
+    r.stats["light_tracing_s"] = s.light_tracing_s;  // the light tracing pass (bidirectional)
+    r.stats["light_paths"] = s.light_paths;
     r.stats["reconstruct_s"] = solve_s;
     r.stats["proposals_per_s"] =
         s.chains_s > 0 ? static_cast<double>(s.mutations) / s.chains_s : 0.0;
@@ -855,6 +866,18 @@ int main(int argc, char** argv) {
                            "PSSMLT: render direct illumination separately with N path-traced spp");
     render_cmd->add_option("--shift-light-tracing", render.shift_light_tracing,
                            "GDMLT with --bidirectional: shift light tracing too (false)");
+    render_cmd
+        ->add_option("--light-tracing-mis", render.light_tracing_mis,
+                     "GDMLT with --bidirectional: factor of light tracing's density in the MIS "
+                     "weights (1)")
+        ->check(CLI::PositiveNumber & finite_number());
+    render_cmd->add_option("--light-tracing-pass", render.light_tracing_pass,
+                           "GDMLT with --bidirectional: light tracing from a pass of its own, not "
+                           "from the chains (true)");
+    render_cmd
+        ->add_option("--light-tracing-share", render.light_tracing_share,
+                     "GDMLT, light tracing pass: its fraction of the time budget (0.3)")
+        ->check(CLI::Range(0.0, 1.0) & finite_number());
     render_cmd->add_option("--bidirectional", render.bidirectional,
                            "PSSMLT, GDMLT: true = bidirectional (BDPT) samples (false)");
     render_cmd->add_option("--reconstruct", render.reconstruct_method,

@@ -10,11 +10,17 @@
 
 #include "core/math/stopwatch.h"
 #include "core/render/render_path.h"
+#include "core/render/render_ptracer.h"
 #include "core/scene/properties.h"
 #include "mlt/gradient_sample.h"
 
 namespace gdmlt::mlt {
 namespace {
+
+/// The light tracing pass runs (GdmltSettings::light_tracing_pass).
+bool lt_pass_enabled(const GdmltSettings& s) {
+    return s.bidirectional && !s.shift_light_tracing && s.light_tracing_pass;
+}
 
 double luminance_of_magnitude(const Rgb& v) {
     return static_cast<double>(luminance(v.abs()));
@@ -59,10 +65,11 @@ class GradientTarget final : public ChainTarget {
         bool finite = true;
         if (settings_.bidirectional) {
             thread_local BidirectionalGradientScratch scratch;
-            sample_bidirectional_gradients(scene_, where.film_position, stream, settings_.path,
-                                           settings_.shift, links, estimates,
-                                           settings_.shift_light_tracing ? &neighbours_ : nullptr,
-                                           scratch, bidirectional, counters.paths, counters.shifts);
+            sample_bidirectional_gradients(
+                scene_, where.film_position, stream, settings_.path, settings_.shift, links,
+                estimates, settings_.shift_light_tracing ? &neighbours_ : nullptr, scratch,
+                bidirectional, counters.paths, counters.shifts,
+                {static_cast<float>(settings_.light_tracing_mis), lt_pass_enabled(settings_)});
             g.primal = bidirectional.primal;
             finite = bidirectional.nonfinite == 0;
         } else {
@@ -193,6 +200,38 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
         out.stats.counters += d.stats.counters;
         out.stats.nonfinite_dropped += d.stats.nonfinite_samples_dropped;
     }
+    // 1b. Bidirectional: light tracing's share from a pass of its own, weighted against the
+    //     strategies the chain samples. Its subpaths must be the chain's (same depth cap, no
+    //     roulette: sample_bidirectional_gradients) so that the weights of a path's strategies
+    //     sum to one across the two estimators.
+    const bool light_tracing_pass = lt_pass_enabled(settings);
+    if (light_tracing_pass) {
+        const Clock::time_point pass_start = Clock::now();
+        RenderSettings lt;
+        lt.seed = derive_stream(settings.seed, 0x11A55);
+        lt.path = settings.path;
+        if (lt.path.max_depth < 0) lt.path.max_depth = kUnboundedDepthCap;
+        lt.path.rr_depth = std::numeric_limits<int>::max();
+        lt.path.min_depth = 2;  // one segment is the very direct pass's
+        if (settings.time_budget_s > 0.0) {
+            lt.spp = std::numeric_limits<int>::max();
+            lt.time_budget_s = std::max(
+                settings.light_tracing_share * (settings.time_budget_s - seconds_since(start)),
+                1e-3);
+        } else {
+            lt.spp = std::max(settings.light_tracing_spp, 1);
+        }
+        PtracerWeights weights;
+        weights.bdpt_mis = true;
+        weights.light_tracing_scale = static_cast<float>(settings.light_tracing_mis);
+        const RenderOutput l = render_ptracer(scene, lt, cancel, {}, weights);
+        for (std::size_t i = 0; i < b.very_direct.pixels.size(); ++i)
+            b.very_direct.pixels[i] += l.image.pixels[i];
+        out.stats.counters += l.stats.counters;
+        out.stats.nonfinite_dropped += l.stats.nonfinite_samples_dropped;
+        out.stats.light_paths = l.stats.samples;
+        out.stats.light_tracing_s = seconds_since(pass_start);
+    }
 
     // 2. The chains.
     // One chain per 4096 proposals, at least 64 (GdmltSettings::chains).
@@ -204,11 +243,9 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
     const GradientTarget target(scene, settings, neighbours);
     const ChainRunnerOutput chains = run_chains(target, runner, cancel, progress);
     const PathCounters direct_counters = out.stats.counters;
-    const double very_direct_s = out.stats.very_direct_s;
     const std::uint64_t direct_nonfinite = out.stats.nonfinite_dropped;
     static_cast<ChainStats&>(out.stats) = chains.stats;
     out.stats.counters += direct_counters;
-    out.stats.very_direct_s = very_direct_s;
     out.stats.nonfinite_dropped += direct_nonfinite;
     if (!(chains.stats.b > 0.0))
         std::cerr << "gdmlt: every bootstrap sample had a zero target; only very direct light "
@@ -259,6 +296,10 @@ GdmltSettings gdmlt_settings_from_scene(const IntegratorSettings& integrator) {
     s.very_direct_samples = props.get_int32("very_direct_samples", s.very_direct_samples);
     s.bidirectional = props.get_bool("bidirectional", s.bidirectional);
     s.shift_light_tracing = props.get_bool("shift_light_tracing", s.shift_light_tracing);
+    s.light_tracing_mis = props.get_float("light_tracing_mis", s.light_tracing_mis);
+    s.light_tracing_pass = props.get_bool("light_tracing_pass", s.light_tracing_pass);
+    s.light_tracing_share = props.get_float("light_tracing_share", s.light_tracing_share);
+    s.light_tracing_spp = props.get_int32("light_tracing_spp", s.light_tracing_spp);
     props.check_all_read();
     validate_gdmlt_settings(s, integrator.desc.loc);
     return s;
@@ -275,6 +316,11 @@ void validate_gdmlt_settings(const GdmltSettings& s, const FileLoc& loc) {
     if (s.very_direct_samples < 1) throw InputError(loc, "very_direct_samples must be positive");
     if (s.shift_light_tracing && !s.bidirectional)
         throw InputError(loc, "shift_light_tracing needs bidirectional (no light tracing without)");
+    if (!(s.light_tracing_mis > 0.0 && std::isfinite(s.light_tracing_mis)))
+        throw InputError(loc, "light_tracing_mis must be positive and finite");
+    if (!(s.light_tracing_share > 0.0 && s.light_tracing_share < 1.0))
+        throw InputError(loc, "light_tracing_share must lie in (0, 1)");
+    if (s.light_tracing_spp < 1) throw InputError(loc, "light_tracing_spp must be positive");
 }
 
 }  // namespace gdmlt::mlt

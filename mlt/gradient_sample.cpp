@@ -129,9 +129,9 @@ PathValue camera_order_value(const Scene& scene, const Path& path) {
 /// unshifted.
 bool shift_light_tracing(const Scene& scene, const std::vector<BdptVertex>& light, int s,
                          const BdptConnection& c, const Rgb& value, manifold::ShiftKind shift,
-                         const NeighbourSet& neighbours, BidirectionalGradientScratch& scratch,
-                         BidirectionalGradientSample& out, PathCounters& counters,
-                         manifold::ShiftCounters& shift_counters) {
+                         float light_tracing_scale, const NeighbourSet& neighbours,
+                         BidirectionalGradientScratch& scratch, BidirectionalGradientSample& out,
+                         PathCounters& counters, manifold::ShiftCounters& shift_counters) {
     Path& base = scratch.light_path;
     if (!light_path_in_camera_order(scene, light, s, c.film_position, base)) return false;
     ++counters.bounce_rays;  // the ray that found the light's point
@@ -157,8 +157,8 @@ bool shift_light_tracing(const Scene& scene, const std::vector<BdptVertex>& ligh
             const PathValue y_value = camera_order_value(scene, y);
             // The shared light point: its forward density is the base's (same origin).
             light_subpath_from_path(scene, light[0], y, scratch.offset_light);
-            const float weight =
-                light_tracing_mis_weight(scene, scratch.offset_light, s, true, scratch.bdpt);
+            const float weight = light_tracing_mis_weight(scene, scratch.offset_light, s, true,
+                                                          light_tracing_scale, scratch.bdpt);
             const double j = std::exp(log_j);
             rho = y_value.pdf * j / x_value.pdf;
             for (int ch = 0; ch < 3; ++ch)
@@ -258,7 +258,8 @@ void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_positi
                                     const NeighbourSet* neighbours,
                                     BidirectionalGradientScratch& scratch,
                                     BidirectionalGradientSample& out, PathCounters& counters,
-                                    manifold::ShiftCounters& shift_counters) {
+                                    manifold::ShiftCounters& shift_counters,
+                                    const BidirectionalGradientOptions& options) {
     PathSamplerSettings path = path_in;
     if (path.max_depth < 0) path.max_depth = kUnboundedDepthCap;
     path.rr_depth = std::numeric_limits<int>::max();
@@ -286,6 +287,7 @@ void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_positi
     scratch.terms.clear();
     BdptConnectionInput in;
     in.light = &light;
+    in.light_tracing_scale = options.light_tracing_scale;
     const auto n_camera = static_cast<int>(scratch.base_camera.size());
     const auto n_light = static_cast<int>(light.size());
     // The camera prefix of strategy t ends at path vertex t - 2; s = 1 uses its light sample.
@@ -303,6 +305,7 @@ void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_positi
         for (int s = 0; s <= n_light; ++s) {
             const int segments = s + t - 1;
             if (segments < 2 || segments > max_depth) continue;
+            if (t == 1 && options.without_light_tracing) continue;
             in.camera = &scratch.base_camera;
             in.s = s;
             in.t = t;
@@ -318,9 +321,9 @@ void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_positi
             }
             if (is_black(value)) continue;
             if (t == 1) {
-                if (!neighbours ||
-                    !shift_light_tracing(scene, light, s, c, value, shift, *neighbours, scratch,
-                                         out, counters, shift_counters))
+                if (!neighbours || !shift_light_tracing(scene, light, s, c, value, shift,
+                                                        options.light_tracing_scale, *neighbours,
+                                                        scratch, out, counters, shift_counters))
                     out.light_splats.push_back({c.film_position, value});
             } else {
                 out.primal += value;

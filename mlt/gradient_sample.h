@@ -125,6 +125,16 @@ struct BidirectionalGradientScratch {
 /// then the light subpath its BDPT layout; no Russian roulette (max_depth -1 is capped at
 /// kUnboundedDepthCap). `estimates[k]` gets link k's halves. `neighbours` (over the crop
 /// window) enables the shifts of light tracing; without it light tracing is unshifted.
+/// `options` (BidirectionalGradientOptions) change the MIS weights and may leave light tracing
+/// out.
+struct BidirectionalGradientOptions {
+    /// The factor c of light tracing's density in every MIS weight over the strategies
+    /// (BdptConnectionInput::light_tracing_scale; 1 = plain MIS).
+    float light_tracing_scale = 1.f;
+    /// Light tracing (t = 1) is left out: its weighted share comes from elsewhere (a light
+    /// tracing pass with the same weights, render_ptracer with PtracerWeights::bdpt_mis).
+    bool without_light_tracing = false;
+};
 void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_position,
                                     SampleStream& stream, const PathSamplerSettings& path,
                                     manifold::ShiftKind shift, std::span<const NeighbourLink> links,
@@ -132,6 +142,7 @@ void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_positi
                                     const NeighbourSet* neighbours,
                                     BidirectionalGradientScratch& scratch,
                                     BidirectionalGradientSample& out, PathCounters& counters,
-                                    manifold::ShiftCounters& shift_counters);
+                                    manifold::ShiftCounters& shift_counters,
+                                    const BidirectionalGradientOptions& options = {});
 
 }  // namespace gdmlt::mlt

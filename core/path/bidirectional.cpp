@@ -255,7 +255,8 @@ void light_subpath(const Scene& scene, SampleStream& stream, int max_vertices, i
 float mis_weight(const Scene& scene, const std::vector<BdptVertex>& light,
                  const std::vector<BdptVertex>& camera, const BdptVertex* sampled_light,
                  const BdptVertex* sampled_camera, int s, int t, bool power,
-                 std::vector<BdptMisEntry>& light_mis, std::vector<BdptMisEntry>& camera_mis) {
+                 double light_tracing_scale, std::vector<BdptMisEntry>& light_mis,
+                 std::vector<BdptMisEntry>& camera_mis) {
     const auto light_at = [&](int i) {
         return (sampled_light && i == 0) ? sampled_light : &light[static_cast<std::size_t>(i)];
     };
@@ -297,14 +298,22 @@ float mis_weight(const Scene& scene, const std::vector<BdptVertex>& light,
 
     const auto remap = [](float pdf) { return pdf != 0.f ? pdf : 1.f; };
     const auto h = [&](double r) { return power ? r * r : r; };
+    // Light tracing's density counts light_tracing_scale times (Veach 1997, sec. 9.2: any
+    // weights that sum to one over the strategies of a path are unbiased, so c_i p_i in place of
+    // p_i is). The gradient-domain samplers use c < 1 because light tracing's image is not
+    // shifted and keeps its noise, while the other strategies' noise is reduced by the solve.
+    const double c = light_tracing_scale;
     double sum = 0.0, ratio = 1.0;
     // Moving the connection towards the camera: strategies (s + k, t - k). The pinhole
-    // (camera vertex 0) cannot be hit.
+    // (camera vertex 0) cannot be hit; i = 1 is light tracing.
     for (int i = t - 1; i > 0; --i) {
         const BdptMisEntry& e = camera_mis[static_cast<std::size_t>(i)];
         ratio *= static_cast<double>(remap(e.pdf_rev)) / remap(e.pdf_fwd);
-        if (!e.delta && !camera_mis[static_cast<std::size_t>(i - 1)].delta) sum += h(ratio);
+        if (!e.delta && !camera_mis[static_cast<std::size_t>(i - 1)].delta)
+            sum += h(i == 1 ? ratio * c : ratio);
     }
+    // This strategy is light tracing: the others relative to its scaled density.
+    const double own = t == 1 ? 1.0 / c : 1.0;
     // Towards the light: strategies (s - k, t + k); a light with a delta in position or
     // direction cannot be hit (k = s).
     ratio = 1.0;
@@ -313,7 +322,7 @@ float mis_weight(const Scene& scene, const std::vector<BdptVertex>& light,
         ratio *= static_cast<double>(remap(e.pdf_rev)) / remap(e.pdf_fwd);
         const bool delta_before =
             i > 0 ? light_mis[static_cast<std::size_t>(i - 1)].delta : light_at(0)->delta_light;
-        if (!e.delta && !delta_before) sum += h(ratio);
+        if (!e.delta && !delta_before) sum += h(ratio * own);
     }
     return static_cast<float>(1.0 / (1.0 + sum));
 }
@@ -415,11 +424,11 @@ BdptConnection connect_bdpt(const Scene& scene, const BdptConnectionInput& in, B
     }
     if (is_black(contribution)) return out;
     out.contribution = contribution;
-    out.weight = in.mis
-                     ? mis_weight(scene, light, camera, use_sampled && t > 1 ? &sampled : nullptr,
-                                  use_sampled && t == 1 ? &sampled : nullptr, s, t,
-                                  in.power_heuristic, scratch.light_mis, scratch.camera_mis)
-                     : 1.f;
+    out.weight =
+        in.mis ? mis_weight(scene, light, camera, use_sampled && t > 1 ? &sampled : nullptr,
+                            use_sampled && t == 1 ? &sampled : nullptr, s, t, in.power_heuristic,
+                            in.light_tracing_scale, scratch.light_mis, scratch.camera_mis)
+               : 1.f;
     return out;
 }
 
@@ -510,7 +519,8 @@ void light_subpath_from_path(const Scene& scene, const BdptVertex& origin, const
 }
 
 float light_tracing_mis_weight(const Scene& scene, const std::vector<BdptVertex>& light, int s,
-                               bool power_heuristic, BdptScratch& scratch) {
+                               bool power_heuristic, float light_tracing_scale,
+                               BdptScratch& scratch) {
     BdptVertex pinhole;
     pinhole.kind = BdptVertex::Kind::Camera;
     pinhole.p = scene.camera().position();
@@ -518,7 +528,7 @@ float light_tracing_mis_weight(const Scene& scene, const std::vector<BdptVertex>
     // subpath (this runs per light tracing term and link, so no allocation either).
     static const std::vector<BdptVertex> kNoCameraSubpath;
     return mis_weight(scene, light, kNoCameraSubpath, nullptr, &pinhole, s, 1, power_heuristic,
-                      scratch.light_mis, scratch.camera_mis);
+                      light_tracing_scale, scratch.light_mis, scratch.camera_mis);
 }
 
 void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& camera_stream,
@@ -548,6 +558,7 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
     in.light = &scratch.light;
     in.mis = !only || settings.weight_only;
     in.power_heuristic = settings.power_heuristic;
+    in.light_tracing_scale = settings.light_tracing_scale;
     const int n_camera = static_cast<int>(scratch.camera.size());
     const int n_light = static_cast<int>(scratch.light.size());
     for (int t = 1; t <= n_camera; ++t) {

@@ -64,6 +64,9 @@ struct BdptSettings {
     bool hide_emitters = false;
     /// Power heuristic (exponent 2, Veach 1997 eq. 9.13) or balance heuristic.
     bool power_heuristic = true;
+    /// > 0: light tracing's (t = 1) density counts this many times in the MIS weights
+    /// (BdptConnectionInput::light_tracing_scale).
+    float light_tracing_scale = 1.f;
     /// Evaluate only strategy (only_s, only_t) when >= 0, with subpaths of just those lengths:
     /// unweighted (MIS off, for tests) or, with `weight_only`, MIS-weighted against all the
     /// strategies of its path length (multiplexed MLT, Hachisuka et al. 2014).
@@ -133,6 +136,9 @@ struct BdptConnectionInput {
     bool light_sample_visible = false;
     bool mis = true;  // compute the MIS weight (else 1)
     bool power_heuristic = true;
+    /// > 0: the MIS weights use c p in place of light tracing's density p (Veach 1997,
+    /// sec. 9.2: weights that sum to one over a path's strategies stay unbiased). 1: plain MIS.
+    float light_tracing_scale = 1.f;
 };
 
 /// Evaluates one strategy: the connection of sample_bdpt, shared with the gradient-domain
@@ -166,7 +172,8 @@ void light_subpath_from_path(const Scene& scene, const BdptVertex& origin, const
 /// The MIS weight of light tracing, strategy (s, 1), for the path of light subpath vertices
 /// 0 .. s-1 seen from the pinhole.
 float light_tracing_mis_weight(const Scene& scene, const std::vector<BdptVertex>& light, int s,
-                               bool power_heuristic, BdptScratch& scratch);
+                               bool power_heuristic, float light_tracing_scale,
+                               BdptScratch& scratch);
 
 /// One bidirectional sample through `film_position` (full-film pixels).
 void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& camera_stream,

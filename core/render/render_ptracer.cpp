@@ -36,12 +36,14 @@ struct ChunkResult {
     std::uint64_t nonfinite = 0;
 };
 
-/// Light tracing is BDPT's strategy t = 1 alone, unweighted: the light subpath and the
-/// connection to the pinhole are BDPT's (core/path/bidirectional.h), so the two integrators
-/// cannot disagree about a light path's value.
+/// Light tracing is BDPT's strategy t = 1 alone, unweighted (or with BDPT's MIS weight,
+/// PtracerWeights): the light subpath and the connection to the pinhole are BDPT's
+/// (core/path/bidirectional.h), so the two integrators cannot disagree about a light path's
+/// value.
 class LightTracer {
   public:
-    LightTracer(const Scene& scene, const PathSamplerSettings& path) : scene_(scene), path_(path) {}
+    LightTracer(const Scene& scene, const PathSamplerSettings& path, const PtracerWeights& weights)
+        : scene_(scene), path_(path), weights_(weights) {}
 
     /// Traces light path `index` and appends its splats (unnormalised: sum over paths, then
     /// divide by their number).
@@ -58,7 +60,8 @@ class LightTracer {
         in.camera = &kNoCameraSubpath;
         in.light = &scratch.light;
         in.t = 1;
-        in.mis = false;
+        in.mis = weights_.bdpt_mis;
+        in.light_tracing_scale = weights_.light_tracing_scale;
         for (int s = 1; s <= static_cast<int>(scratch.light.size()); ++s) {
             // s = 1: the emitter's point itself (area lights; point and spot lights are
             // invisible to a camera, as in the path tracer and Mitsuba).
@@ -70,21 +73,25 @@ class LightTracer {
                 continue;
             }
             if (is_black(c.contribution)) continue;
+            const Rgb value = weights_.bdpt_mis ? Rgb(c.contribution * c.weight) : c.contribution;
+            if (is_black(value)) continue;
             out.splats.push_back(
-                {crop_pixel_index(scene_.camera().film(), c.film_position), c.contribution});
+                {crop_pixel_index(scene_.camera().film(), c.film_position), value});
         }
     }
 
   private:
     const Scene& scene_;
     PathSamplerSettings path_;
+    PtracerWeights weights_;
 };
 
 }  // namespace
 
 RenderOutput render_ptracer(const Scene& scene, const RenderSettings& settings,
                             const std::atomic<bool>* cancel,
-                            const std::function<void(const RenderProgress&)>& progress) {
+                            const std::function<void(const RenderProgress&)>& progress,
+                            const PtracerWeights& weights) {
     const Clock::time_point start = Clock::now();
     const Film& film = scene.camera().film();
     const int width = film.crop_width, height = film.crop_height;
@@ -97,7 +104,7 @@ RenderOutput render_ptracer(const Scene& scene, const RenderSettings& settings,
 
     std::vector<RgbD> light_sums(pixels, RgbD::Zero());
     std::vector<RgbD> environment_sums(environment_visible ? pixels : 0, RgbD::Zero());
-    const LightTracer tracer(scene, settings.path);
+    const LightTracer tracer(scene, settings.path, weights);
     RenderOutput out;
     RenderStats& stats = out.stats;
 

@@ -17,12 +17,25 @@
 
 namespace gdmlt {
 
+/// How light tracing weighs its paths.
+struct PtracerWeights {
+    /// false: unweighted (the `ptracer` integrator). true: each path's BDPT MIS weight of
+    /// strategy (s, 1) against every strategy of that path (power heuristic; Veach 1997,
+    /// sec. 10.3.4), for a render that adds the other strategies' weighted share from elsewhere
+    /// (bidirectional GDMLT's light tracing pass). The weights assume BDPT's subpaths with the
+    /// same max_depth and roulette (PathSamplerSettings::rr_depth) as that other estimator.
+    bool bdpt_mis = false;
+    /// With bdpt_mis: BdptConnectionInput::light_tracing_scale.
+    float light_tracing_scale = 1.f;
+};
+
 /// Renders with light tracing. `settings.spp` is the number of light paths per crop-window
 /// pixel (the whole image receives pixel count x spp of them), also the unit of its passes:
 /// results are bit-identical across thread counts and pass splits. Stats count light paths
 /// as samples.
 RenderOutput render_ptracer(const Scene& scene, const RenderSettings& settings,
                             const std::atomic<bool>* cancel = nullptr,
-                            const std::function<void(const RenderProgress&)>& progress = {});
+                            const std::function<void(const RenderProgress&)>& progress = {},
+                            const PtracerWeights& weights = {});
 
 }  // namespace gdmlt

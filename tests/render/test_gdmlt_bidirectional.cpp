@@ -6,6 +6,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <functional>
 
 #include "core/image/neighbour_set.h"
 #include "core/render/render_path.h"
@@ -203,10 +204,10 @@ mlt::GdmltSettings bidirectional_gdmlt(std::uint64_t seed, double mutations_per_
 }
 
 void check_l2_image(const Scene& scene, std::uint64_t seed, double max_rel_mse,
-                    bool shift_light_tracing) {
+                    const std::function<void(mlt::GdmltSettings&)>& configure) {
     const RenderOutput reference = test::reference_render(scene);
     mlt::GdmltSettings s = bidirectional_gdmlt(seed, 1024);
-    s.shift_light_tracing = shift_light_tracing;
+    configure(s);
     // The lights cover a few pixels' corners at 16x16: the very direct pass needs many samples
     // per pixel to be as precise as the reference.
     s.very_direct_samples = 4096;
@@ -231,13 +232,31 @@ TEST(GdmltBidirectional, L2ImageConvergesToThePathTracersWithAGlassSphere) {
     // errors, and a small relMSE (a wrong sign or weight on an edge, or light tracing splatted
     // without its 1/pixels, gives errors of tens of percent).
     // Light tracing shifted (its differences and primal in the reconstructed layers).
-    check_l2_image(test::scene_from_xml(test::cornell_box_xml(16, true)), 9, 0.01, true);
+    check_l2_image(test::scene_from_xml(test::cornell_box_xml(16, true)), 9, 0.01,
+                   [](mlt::GdmltSettings& s) { s.shift_light_tracing = true; });
 }
 
 TEST(GdmltBidirectional, L2ImageConvergesToThePathTracersWithTheLightSealedInGlass) {
-    // Light tracing unshifted (added after the solve). The path tracer's reference is noisy
-    // here (it reaches the light only through the glass by BSDF sampling): measured 0.013.
-    check_l2_image(test::scene_from_xml(test::sealed_light_box_xml(16)), 10, 0.03, false);
+    // Light tracing unshifted, from the chains' states (added after the solve). The path
+    // tracer's reference is noisy here (it reaches the light only through the glass by BSDF
+    // sampling): measured 0.013.
+    check_l2_image(test::scene_from_xml(test::sealed_light_box_xml(16)), 10, 0.03,
+                   [](mlt::GdmltSettings& s) { s.light_tracing_pass = false; });
+}
+
+TEST(GdmltBidirectional, WithALightTracingPassTheImageStillConvergesToThePathTracers) {
+    // Light tracing's share from a pass of its own (render_ptracer with BDPT's weights) and the
+    // other strategies from the chains: the two halves' weights must sum to one on every path,
+    // which needs the same subpaths (depth cap, no roulette) and the same light tracing scale
+    // on both sides. Same scene, seed and bounds as the test above; 256 light paths per pixel
+    // (light tracing carries most of the light here); the light tracing scale at 0.2 (which
+    // moves light from the pass to the chains: a side that ignored it would be off by that).
+    check_l2_image(test::scene_from_xml(test::sealed_light_box_xml(16)), 10, 0.03,
+                   [](mlt::GdmltSettings& s) {
+                       s.light_tracing_pass = true;
+                       s.light_tracing_spp = 256;
+                       s.light_tracing_mis = 0.2;
+                   });
 }
 
 TEST(GdmltBidirectional, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
@@ -254,6 +273,23 @@ TEST(GdmltBidirectional, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
     EXPECT_TRUE(one.buffers.dy == two.buffers.dy);
     EXPECT_TRUE(one.buffers.very_direct == two.buffers.very_direct);
     EXPECT_GT(test::mean_luminance(one.buffers.primal), 0.0);
+}
+
+TEST(GdmltBidirectional, WithALightTracingPassTheSameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
+    const Scene scene = test::scene_from_xml(test::sealed_light_box_xml(12));
+    mlt::GdmltSettings s = bidirectional_gdmlt(4, 16);
+    s.light_tracing_pass = true;
+    s.light_tracing_spp = 2;
+    s.chains = 40;
+    s.bootstrap_samples = 4000;
+    s.bootstrap_relative_error = 0.0;
+    const auto [one, two] =
+        test::at_one_and_two_threads([&] { return mlt::render_gdmlt(scene, s); });
+    EXPECT_TRUE(one.buffers.primal == two.buffers.primal);
+    EXPECT_TRUE(one.buffers.dx == two.buffers.dx);
+    EXPECT_TRUE(one.buffers.very_direct == two.buffers.very_direct);
+    EXPECT_GT(one.stats.light_paths, 0u);
+    EXPECT_GT(test::mean_luminance(one.buffers.very_direct), 0.0);
 }
 
 }  // namespace
