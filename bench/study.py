@@ -34,7 +34,8 @@ Sections of the report
 1. Equal-time matrix: every integrator (and Mitsuba 3) x scene x budget, error-vs-time
    curves, a montage of equal-time crops.
 2. The price of each knob (on --knob-scene): GDMLT's shift family, primal weight, large-step
-   probability, mutation size, neighbours, bidirectional samples; the reconstruction method,
+   probability, mutation size, neighbours, bidirectional samples (auto, off, on) and where
+   bidirectional GDMLT's light tracing comes from; the reconstruction method,
    alpha and iteration count offline on one raw render; the manifold walk's tolerance and
    iteration cap (bench_manifold).
 3. The shift table: per family, similarity (variance of the GDPT differences over that of the
@@ -554,7 +555,13 @@ class Study:
                             ("adap bandwidths x0.5", ["--neighbours", "adap", "--adap-sigma", "0.05", "0.1", "0.025",
                                                       "0.25"]),
                             ("adap bandwidths x2", ["--neighbours", "adap", "--adap-sigma", "0.2", "0.4", "0.1", "1"])]),
-            ("samples", [("unidirectional (default)", []), ("bidirectional", ["--bidirectional", "true"])]),
+            ("samples", [("auto (default)", []), ("unidirectional", ["--bidirectional", "false"]),
+                         ("bidirectional", ["--bidirectional", "true"])]),
+            ("light tracing (bidirectional)", [("from a pass, share 0.3", ["--bidirectional", "true"]),
+                                               ("from the chains", ["--bidirectional", "true",
+                                                                    "--light-tracing-pass", "false"]),
+                                               ("from a pass, share 0.5", ["--bidirectional", "true",
+                                                                           "--light-tracing-share", "0.5"])]),
         ]
         rows, default_raw = [], None
         for group, variants in groups:

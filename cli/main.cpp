@@ -74,7 +74,7 @@ struct RenderOptions {
     std::optional<int> bootstrap;
     std::optional<double> mpp;
     std::optional<int> direct_samples;
-    std::optional<bool> bidirectional;
+    std::optional<std::string> bidirectional;  // true | false | auto
     std::optional<bool> shift_light_tracing;
     std::optional<double> light_tracing_mis;
     std::optional<bool> light_tracing_pass;
@@ -358,6 +358,33 @@ IntegratorResult run_path(const Scene& scene, const RenderOptions& options, Prog
     return r;
 }
 
+/// --bidirectional true|false|auto into `bidirectional`. Auto (asked for, or for GDMLT
+/// whenever neither the flag nor the scene's integrator says) lets the scene decide
+/// (mlt::choose_bidirectional); the choice is returned for the stats.
+std::optional<mlt::BidirectionalChoice> resolve_bidirectional(const Scene& scene,
+                                                              const RenderOptions& options,
+                                                              bool auto_by_default,
+                                                              bool& bidirectional) {
+    const bool scene_says = scene.integrator().desc.find("bidirectional") != nullptr;
+    const bool automatic =
+        options.bidirectional ? *options.bidirectional == "auto" : auto_by_default && !scene_says;
+    if (!automatic) {
+        if (options.bidirectional) bidirectional = *options.bidirectional == "true";
+        return std::nullopt;
+    }
+    const mlt::BidirectionalChoice choice = mlt::choose_bidirectional(scene);
+    bidirectional = choice.bidirectional;
+    return choice;
+}
+
+json bidirectional_choice_json(const std::optional<mlt::BidirectionalChoice>& choice) {
+    if (!choice) return nullptr;
+    return {{"bidirectional", choice->bidirectional},
+            {"specular_first_hit_fraction", choice->specular_first_hit_fraction},
+            {"rays", choice->rays},
+            {"threshold", mlt::BidirectionalChoice::kThreshold}};
+}
+
 /// PSSMLT, unidirectional or bidirectional, or (`integrator` "mmlt") multiplexed MLT.
 IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, ProgressBar& bar,
                             const std::string& integrator) {
@@ -366,7 +393,8 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
     apply_mutation_options(options, settings.mutation, settings.chains, settings.bootstrap_samples);
     if (options.mpp) settings.mutations_per_pixel = *options.mpp;
     if (options.direct_samples) settings.direct_samples = *options.direct_samples;
-    if (options.bidirectional) settings.bidirectional = *options.bidirectional;
+    const std::optional<mlt::BidirectionalChoice> choice =
+        resolve_bidirectional(scene, options, false, settings.bidirectional);
     // --spp gives a PSSMLT budget of as many mutations per pixel.
     if (!options.mpp && options.spp > 0) settings.mutations_per_pixel = options.spp;
     settings.time_budget_s = options.time_s;
@@ -390,6 +418,7 @@ IntegratorResult run_pssmlt(const Scene& scene, const RenderOptions& options, Pr
         {"kelemen_style_weights", settings.kelemen_weights},
         {"direct_samples", settings.direct_samples},
         {"bidirectional", settings.bidirectional},
+        {"bidirectional_auto", bidirectional_choice_json(choice)},
         {"max_depth", settings.path.max_depth},
         {"rr_depth", settings.path.rr_depth},
         {"hide_emitters", settings.path.hide_emitters}};
@@ -468,7 +497,8 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     if (options.very_direct_samples) settings.very_direct_samples = *options.very_direct_samples;
     if (options.bootstrap_error) settings.bootstrap_relative_error = *options.bootstrap_error;
     if (options.primal_from_offsets) settings.primal_from_offsets = *options.primal_from_offsets;
-    if (options.bidirectional) settings.bidirectional = *options.bidirectional;
+    const std::optional<mlt::BidirectionalChoice> choice =
+        resolve_bidirectional(scene, options, true, settings.bidirectional);
     if (options.shift_light_tracing) settings.shift_light_tracing = *options.shift_light_tracing;
     if (options.light_tracing_mis) settings.light_tracing_mis = *options.light_tracing_mis;
     if (options.light_tracing_pass) settings.light_tracing_pass = *options.light_tracing_pass;
@@ -495,6 +525,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
                 {"primal_weight", settings.primal_weight},
                 {"primal_from_offsets", settings.primal_from_offsets},
                 {"bidirectional", settings.bidirectional},
+                {"bidirectional_auto", bidirectional_choice_json(choice)},
                 {"shift_light_tracing", settings.shift_light_tracing},
                 {"light_tracing_mis", settings.light_tracing_mis},
                 {"light_tracing_pass", settings.light_tracing_pass},
@@ -878,8 +909,11 @@ int main(int argc, char** argv) {
         ->add_option("--light-tracing-share", render.light_tracing_share,
                      "GDMLT, light tracing pass: its fraction of the time budget (0.3)")
         ->check(CLI::Range(0.0, 1.0) & finite_number());
-    render_cmd->add_option("--bidirectional", render.bidirectional,
-                           "PSSMLT, GDMLT: true = bidirectional (BDPT) samples (false)");
+    render_cmd
+        ->add_option("--bidirectional", render.bidirectional,
+                     "PSSMLT, GDMLT: true = bidirectional (BDPT) samples, auto = when the light "
+                     "leaves its emitters through smooth surfaces (PSSMLT false, GDMLT auto)")
+        ->check(CLI::IsMember({"true", "false", "auto"}));
     render_cmd->add_option("--reconstruct", render.reconstruct_method,
                            "Gradient domain: l1 | l2 | cv (l1)");
     render_cmd

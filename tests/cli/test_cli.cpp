@@ -143,6 +143,39 @@ TEST_F(Cli, DefaultsThenTheSceneThenTheCommandLine) {
         EXPECT_NE(stats.find(key), std::string::npos) << key << " in " << stats;
 }
 
+TEST_F(Cli, GdmltChoosesBidirectionalSamplesWhenTheLightLeavesThroughGlass) {
+    // No --bidirectional and none in the scene: auto (mlt::choose_bidirectional), recorded in
+    // the config; a light sealed in a glass sphere gets bidirectional samples, the plain box
+    // not; the flag overrides the choice; any other value than true/false/auto is refused.
+    write("sealed.xml",
+          "<scene version=\"3.0.0\">\n" + test::sealed_light_box_xml(8) + "\n</scene>\n");
+    const auto render = [&](const std::string& scene, const std::string& flags) {
+        const Outcome run = run_gdmlt(dir_, "render " + scene +
+                                                " --integrator gdmlt --spp 1 --chains 4 "
+                                                "--bootstrap 1000 --very-direct-samples 1 -q "
+                                                "-o g.exr --stats g.json " +
+                                                flags);
+        EXPECT_EQ(run.exit_code, 0) << scene << " " << flags << ": " << run.output;
+        return read_text(dir_ / "g.json");
+    };
+    std::string stats = render("sealed.xml", "");
+    EXPECT_NE(stats.find("\"bidirectional\": true"), std::string::npos) << stats;
+    EXPECT_NE(stats.find("\"specular_first_hit_fraction\": 1.0"), std::string::npos) << stats;
+    stats = render("box.xml", "");
+    EXPECT_EQ(stats.find("\"bidirectional\": true"), std::string::npos) << stats;
+    EXPECT_NE(stats.find("\"specular_first_hit_fraction\": 0.0"), std::string::npos) << stats;
+    stats = render("sealed.xml", "--bidirectional false");
+    EXPECT_EQ(stats.find("\"bidirectional\": true"), std::string::npos) << stats;
+    EXPECT_NE(stats.find("\"bidirectional_auto\": null"), std::string::npos) << stats;
+    fs::remove(dir_ / "g.exr");
+    const Outcome bad = run_gdmlt(dir_,
+                                  "render sealed.xml --integrator gdmlt --bidirectional "
+                                  "maybe -q -o g.exr");
+    EXPECT_NE(bad.exit_code, 0);
+    EXPECT_NE(bad.output.find("bidirectional"), std::string::npos) << bad.output;
+    EXPECT_FALSE(fs::exists(dir_ / "g.exr"));
+}
+
 TEST_F(Cli, NonFiniteOrRunawayNumbersAreRefusedBeforeAnythingIsWritten) {
     // NaN passes CLI11's PositiveNumber and Range checks (they compare with < and >): --time
     // nan used to be ignored, --alpha nan found only after the render, and --mpp 1e30

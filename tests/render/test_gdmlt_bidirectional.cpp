@@ -259,6 +259,26 @@ TEST(GdmltBidirectional, WithALightTracingPassTheImageStillConvergesToThePathTra
                    });
 }
 
+TEST(GdmltBidirectional, AutoChoosesBidirectionalSamplesWhereLightLeavesThroughGlass) {
+    // The light sealed in a glass sphere: every emitted ray meets the glass first. The box
+    // with a glass sphere: only the rays towards the sphere (it subtends a small part of the
+    // light's hemisphere). The diffuse box: none. Deterministic (fixed numbers).
+    const mlt::BidirectionalChoice sealed =
+        mlt::choose_bidirectional(test::scene_from_xml(test::sealed_light_box_xml(8)));
+    EXPECT_TRUE(sealed.bidirectional);
+    EXPECT_EQ(sealed.rays, 4096);
+    EXPECT_GT(sealed.specular_first_hit_fraction, 0.99);
+    const mlt::BidirectionalChoice sphere =
+        mlt::choose_bidirectional(test::scene_from_xml(test::cornell_box_xml(8, true)));
+    EXPECT_FALSE(sphere.bidirectional);
+    EXPECT_GT(sphere.specular_first_hit_fraction, 0.0);
+    EXPECT_LT(sphere.specular_first_hit_fraction, 0.3);
+    const mlt::BidirectionalChoice diffuse =
+        mlt::choose_bidirectional(test::scene_from_xml(test::cornell_box_xml(8)));
+    EXPECT_FALSE(diffuse.bidirectional);
+    EXPECT_EQ(diffuse.specular_first_hit_fraction, 0.0);
+}
+
 TEST(GdmltBidirectional, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
     const Scene scene = test::scene_from_xml(test::sealed_light_box_xml(12));
     mlt::GdmltSettings s = bidirectional_gdmlt(4, 16);
