@@ -279,13 +279,17 @@ TEST(GdmltBidirectional, AutoChoosesBidirectionalSamplesWhereLightLeavesThroughG
     EXPECT_EQ(diffuse.specular_first_hit_fraction, 0.0);
 }
 
-TEST(GdmltBidirectional, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
+/// The same seed gives bit-identical buffers at one and two threads (light sealed in glass,
+/// 12x12, 16 proposals per pixel), with light tracing as `configure` sets it. Returns the
+/// one-thread render.
+mlt::GdmltOutput expect_same_buffers_at_one_and_two_threads(
+    const std::function<void(mlt::GdmltSettings&)>& configure) {
     const Scene scene = test::scene_from_xml(test::sealed_light_box_xml(12));
     mlt::GdmltSettings s = bidirectional_gdmlt(4, 16);
-    s.shift_light_tracing = true;
     s.chains = 40;
     s.bootstrap_samples = 4000;
     s.bootstrap_relative_error = 0.0;
+    configure(s);
     const auto [one, two] =
         test::at_one_and_two_threads([&] { return mlt::render_gdmlt(scene, s); });
     EXPECT_TRUE(one.buffers.primal == two.buffers.primal);
@@ -293,21 +297,20 @@ TEST(GdmltBidirectional, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
     EXPECT_TRUE(one.buffers.dy == two.buffers.dy);
     EXPECT_TRUE(one.buffers.very_direct == two.buffers.very_direct);
     EXPECT_GT(test::mean_luminance(one.buffers.primal), 0.0);
+    return one;
+}
+
+TEST(GdmltBidirectional, SameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
+    expect_same_buffers_at_one_and_two_threads(
+        [](mlt::GdmltSettings& s) { s.shift_light_tracing = true; });
 }
 
 TEST(GdmltBidirectional, WithALightTracingPassTheSameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
-    const Scene scene = test::scene_from_xml(test::sealed_light_box_xml(12));
-    mlt::GdmltSettings s = bidirectional_gdmlt(4, 16);
-    s.light_tracing_pass = true;
-    s.light_tracing_spp = 2;
-    s.chains = 40;
-    s.bootstrap_samples = 4000;
-    s.bootstrap_relative_error = 0.0;
-    const auto [one, two] =
-        test::at_one_and_two_threads([&] { return mlt::render_gdmlt(scene, s); });
-    EXPECT_TRUE(one.buffers.primal == two.buffers.primal);
-    EXPECT_TRUE(one.buffers.dx == two.buffers.dx);
-    EXPECT_TRUE(one.buffers.very_direct == two.buffers.very_direct);
+    const mlt::GdmltOutput one =
+        expect_same_buffers_at_one_and_two_threads([](mlt::GdmltSettings& s) {
+            s.light_tracing_pass = true;
+            s.light_tracing_spp = 2;
+        });
     EXPECT_GT(one.stats.light_paths, 0u);
     EXPECT_GT(test::mean_luminance(one.buffers.very_direct), 0.0);
 }
