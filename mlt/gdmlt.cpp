@@ -236,9 +236,9 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
     }
 
     // 2. The chains.
-    // One chain per 4096 proposals, at least 64 (GdmltSettings::chains).
+    // One chain per 1024 proposals (4096 bidirectional), at least 64 (GdmltSettings::chains).
     ChainRunnerSettings runner = runner_settings(
-        settings, width, height, 4096, 64,
+        settings, width, height, settings.bidirectional ? 4096 : 1024, 64,
         settings.time_budget_s > 0.0 ? std::max(settings.time_budget_s - seconds_since(start), 1e-3)
                                      : 0.0);
     runner.bootstrap_relative_error = settings.bootstrap_relative_error;

@@ -30,9 +30,14 @@
 namespace gdmlt::mlt {
 
 /// The shared chain knobs (mutations_per_pixel: proposals, each tracing the base path and one
-/// offset per neighbour, 16 by default; chains: 0 = one per 4096 proposals, 64 .. 4096, which
-/// is 256 at 256^2 pixels; 64 chains left a chain brightness spread of 0.63 on
-/// cbox_glass_sphere at 16 s, too few to average their correlated errors) and GDMLT's own.
+/// offset per neighbour, 16 by default; chains: 0 = one per 1024 proposals unidirectional
+/// (1024 at 256^2 pixels), one per 4096 bidirectional (256), 64 .. 4096. 64 chains left a chain
+/// brightness spread of 0.63 on cbox_glass_sphere at 16 s, too few to average their correlated
+/// errors. Unidirectional, 1024 against 256 chains at 16 s: cbox_glass_sphere 0.0049 / 0.0043 /
+/// 0.0047 against 0.0059 / 0.0072 / 0.0054 (seeds 0-2), rough_metal_glass 0.0032 / 0.0034
+/// against 0.0037 / 0.0038, cbox 0.00030 / 0.00022 against 0.00023 / 0.00025 (a tie);
+/// bidirectional on caustic_glass_light 1024 was worse: 0.127 / 0.040 / 0.047 against 0.050 /
+/// 0.021 / 0.043) and GDMLT's own.
 struct GdmltSettings : MarkovChainSettings {
     GdmltSettings() {
         mutations_per_pixel = 16.0;
