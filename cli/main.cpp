@@ -90,6 +90,7 @@ struct RenderOptions {
     std::optional<int> very_direct_samples;
     std::optional<double> bootstrap_error;
     std::optional<bool> primal_from_offsets;
+    std::optional<bool> normalise_link_count;
     // Feature pass (ADAP's auxiliary images), with any integrator.
     bool features = false;
     std::optional<int> feature_spp;
@@ -497,6 +498,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     if (options.very_direct_samples) settings.very_direct_samples = *options.very_direct_samples;
     if (options.bootstrap_error) settings.bootstrap_relative_error = *options.bootstrap_error;
     if (options.primal_from_offsets) settings.primal_from_offsets = *options.primal_from_offsets;
+    if (options.normalise_link_count) settings.normalise_link_count = *options.normalise_link_count;
     const std::optional<mlt::BidirectionalChoice> choice =
         resolve_bidirectional(scene, options, true, settings.bidirectional);
     if (options.shift_light_tracing) settings.shift_light_tracing = *options.shift_light_tracing;
@@ -524,6 +526,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
                 {"neighbours", setup.config},
                 {"primal_weight", settings.primal_weight},
                 {"primal_from_offsets", settings.primal_from_offsets},
+                {"normalise_link_count", settings.normalise_link_count},
                 {"bidirectional", settings.bidirectional},
                 {"bidirectional_auto", bidirectional_choice_json(choice)},
                 {"shift_light_tracing", settings.shift_light_tracing},
@@ -940,6 +943,9 @@ int main(int argc, char** argv) {
     render_cmd->add_option("--primal-from-offsets", render.primal_from_offsets,
                            "GDMLT: primal also from the neighbours' offset paths (G-PT's MIS "
                            "between pixels): true | false");
+    render_cmd->add_option("--normalise-link-count", render.normalise_link_count,
+                           "GDMLT: weigh a pixel's differences in the target by its lattice "
+                           "link count over its link count (ADAP): true | false (true)");
     render_cmd->add_option("--very-direct-samples", render.very_direct_samples,
                            "GDMLT: spp of the pass for emitters seen directly (64)");
     render_cmd

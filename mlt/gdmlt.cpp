@@ -82,9 +82,10 @@ class GradientTarget final : public ChainTarget {
 
         finite = finite && is_finite(g.primal);
         double target = settings_.primal_weight * static_cast<double>(luminance(g.primal));
+        const double link_scale = difference_scale(pixel);
         for (const LinkEstimate& e : estimates) {
             finite = finite && is_finite(e.base) && is_finite(e.offset);
-            target += luminance_of_magnitude(e.difference());
+            target += link_scale * luminance_of_magnitude(e.difference());
         }
         // Light tracing, per light path: a slot's integral over primary sample space times the
         // pixel count is its pixel value, so each of its records is divided by that count.
@@ -100,12 +101,13 @@ class GradientTarget final : public ChainTarget {
             term.primal /= pixels;
             finite = finite && is_finite(term.primal);
             target += settings_.primal_weight * static_cast<double>(luminance(term.primal));
+            const double term_scale = difference_scale(term.pixel);
             for (std::uint32_t k = 0; k < term.count; ++k) {
                 LinkEstimate& e = bidirectional.light_estimates[term.first + k];
                 e.base /= pixels;
                 e.offset /= pixels;
                 finite = finite && is_finite(e.base) && is_finite(e.offset);
-                target += luminance_of_magnitude(e.difference());
+                target += term_scale * luminance_of_magnitude(e.difference());
             }
         }
         if (!finite || !std::isfinite(target)) {
@@ -160,6 +162,24 @@ class GradientTarget final : public ChainTarget {
     }
 
   private:
+    /// The weight of a pixel's differences in f*: its lattice link count over its link count
+    /// (1 on the lattice). A pixel whose shifts fail has |D_k| = C on every link, so an
+    /// unscaled sum weighs it by its link count: ADAP's pixels with 8-12 links along image
+    /// edges got a target several times their lattice neighbours', the chains lingered there
+    /// and rejected their way out (longer rejection streaks, lower acceptance, measured on
+    /// cbox_glass_sphere). Scaled, the graph decides which differences a pixel samples, not
+    /// how much of the chains' time it draws.
+    double difference_scale(std::size_t pixel) const {
+        if (!settings_.normalise_link_count) return 1.0;
+        const auto links = static_cast<double>(neighbours_.links(pixel).size());
+        if (links == 0.0) return 1.0;
+        const int width = neighbours_.width(), height = neighbours_.height();
+        const int x = static_cast<int>(pixel % static_cast<std::size_t>(width));
+        const int y = static_cast<int>(pixel / static_cast<std::size_t>(width));
+        const int lattice = (x > 0) + (x + 1 < width) + (y > 0) + (y + 1 < height);
+        return static_cast<double>(lattice) / links;
+    }
+
     const Scene& scene_;
     const GdmltSettings& settings_;
     const NeighbourSet& neighbours_;

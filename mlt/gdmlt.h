@@ -69,6 +69,10 @@ struct GdmltSettings : MarkovChainSettings {
     /// (medians 0.0066 vs 0.0065 and 0.198 vs 0.173): the reconstruction takes only the
     /// primal's coarse scales, where its noise averages out anyway. Off by default.
     bool primal_from_offsets = false;
+    /// f* weighs a pixel's differences by its lattice link count over its link count (1 on the
+    /// lattice), so that a pixel with more neighbours (ADAP) does not draw more of the chains'
+    /// time for it (GradientTarget::difference_scale).
+    bool normalise_link_count = true;
     /// Base paths are bidirectional samples (camera and light subpaths, every strategy, as
     /// `pssmlt --bidirectional`), shifted as G-BDPT shifts them
     /// (sample_bidirectional_gradients): light tracing is not shifted and joins the very direct

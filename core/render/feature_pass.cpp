@@ -32,10 +32,9 @@ struct FeatureSample {
     int shape = -1;  // -1: escaped
 };
 
-/// The features of one camera path: follows delta vertices (sampling their BSDF, which picks
-/// reflection or refraction with the Fresnel probability) up to `max_specular_bounces` times
-/// and describes the first other vertex. Three stream dimensions per vertex (lobe, direction),
-/// used or not, so that a sample's decisions depend only on its stream.
+/// The features of one camera path: follows delta vertices (along their likelier lobe) up to
+/// `max_specular_bounces` times and describes the first other vertex. Three stream dimensions per
+/// vertex (lobe, direction), used or not, so that a sample's decisions depend only on its stream.
 FeatureSample sample_features(const Scene& scene, const Ray& camera_ray, IndependentStream& stream,
                               int max_specular_bounces, PathCounters& counters) {
     ++counters.paths;
@@ -56,12 +55,17 @@ FeatureSample sample_features(const Scene& scene, const Ray& camera_ray, Indepen
 
         const Vec3f wo_world = -ray.direction;
         const Bsdf& bsdf = scene.bsdf_of(si);
+        const bool delta = bsdf.roughness_class_at(si.uv) == RoughnessClass::Delta;
         // One sample serves both purposes: the continuation at a delta vertex, the albedo
-        // estimate at the feature vertex.
+        // estimate at the feature vertex. At a delta vertex the walk takes the likelier lobe
+        // (u = 1/2 against the Fresnel reflectance: glass refracts unless it reflects more than
+        // half, as at grazing angles and under total internal reflection), so that what a pixel
+        // sees through glass is a function of where in the pixel its ray starts, not of a coin:
+        // with sampled lobes, sample 0's shape id inside a glass sphere was a coin toss between
+        // the room reflected and the room refracted, and ADAP's graph there followed the coin.
         const BsdfSample bs =
-            bsdf.sample(si.uv, si.shading.to_local(wo_world), u_lobe, u_direction);
-        bool feature_vertex = bounce >= max_specular_bounces || !bs.valid() ||
-                              bsdf.roughness_class_at(si.uv) != RoughnessClass::Delta;
+            bsdf.sample(si.uv, si.shading.to_local(wo_world), delta ? 0.5f : u_lobe, u_direction);
+        bool feature_vertex = bounce >= max_specular_bounces || !bs.valid() || !delta;
         Vec3f wi_world = Vec3f::Zero();
         if (!feature_vertex) {
             wi_world = si.shading.to_world(bs.wi);

@@ -6,10 +6,11 @@
 // per pixel, so that a pixel's neighbours can be chosen among pixels with similar features.
 //
 // The feature vertex is the first vertex along the camera path that is not a smooth mirror or
-// glass (RoughnessClass::Delta): at delta surfaces the path follows the sampled lobe, as the
-// auxiliary buffers of denoisers are usually made (Open Image Denoise's documentation, "albedo"
-// and "normal" inputs), so that the features of what is seen through a mirror or a window
-// are those of the surface behind it.
+// glass (RoughnessClass::Delta): at delta surfaces the path follows the likelier lobe (glass
+// refracts unless its Fresnel reflectance exceeds 1/2), as the auxiliary buffers of denoisers
+// are usually made (Open Image Denoise's documentation, "albedo" and "normal" inputs), so that
+// the features of what is seen through a mirror or a window are those of the surface behind
+// it, and the same wherever the pixel's samples land on one side of a silhouette.
 #include <atomic>
 #include <cstdint>
 

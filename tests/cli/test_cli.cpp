@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -466,21 +467,33 @@ TEST_F(Cli, AHugeBootstrapStopsAtTheSignalAndAtTheTimeBudget) {
 
 TEST_F(Cli, ReconstructWithoutFlagsReproducesTheRendersFinalImage) {
     // The header records the render's reconstruction settings and the EXR every layer the
-    // solve reads, so `gdmlt reconstruct raw.exr` needs no flags to give the same pixels.
-    for (const std::string integrator : {"gdpt", "gdmlt"}) {
-        const Outcome render = run_gdmlt(
-            dir_, "render box.xml --integrator " + integrator + " --spp 8 -t 2 -q -o raw.exr");
-        ASSERT_EQ(render.exit_code, 0) << render.output;
-        const Outcome solve = run_gdmlt(dir_, "reconstruct raw.exr -t 2 -q -o again.exr");
-        ASSERT_EQ(solve.exit_code, 0) << solve.output;
-        const Image rendered = read_exr((dir_ / "raw.exr").string()).front().image;
-        const Image solved = read_exr((dir_ / "again.exr").string()).front().image;
-        EXPECT_TRUE(rendered == solved) << integrator;
-        // The check could not fail on a black image.
-        double sum = 0.0;
-        for (float v : solved.pixels) sum += v;
-        EXPECT_GT(sum, 0.0) << integrator;
-    }
+    // solve reads (with ADAP's graph its non-lattice edges), so `gdmlt reconstruct raw.exr`
+    // needs no flags to give the same pixels.
+    for (const std::string integrator : {"gdpt", "gdmlt"})
+        for (const std::string neighbours : {"lattice", "adap"}) {
+            const std::string what = integrator + " " + neighbours;
+            const Outcome render =
+                run_gdmlt(dir_, "render box.xml --integrator " + integrator + " --neighbours " +
+                                    neighbours + " --spp 8 -t 2 -q -o raw.exr");
+            ASSERT_EQ(render.exit_code, 0) << render.output;
+            const Outcome solve = run_gdmlt(dir_, "reconstruct raw.exr -t 2 -q -o again.exr");
+            ASSERT_EQ(solve.exit_code, 0) << solve.output;
+            const std::vector<ExrLayer> layers = read_exr((dir_ / "raw.exr").string());
+            const Image& rendered = layers.front().image;
+            const Image solved = read_exr((dir_ / "again.exr").string()).front().image;
+            EXPECT_TRUE(rendered == solved) << what;
+            // The check could not fail on a black image, nor test ADAP's graph without
+            // non-lattice edges.
+            double sum = 0.0;
+            for (float v : solved.pixels) sum += v;
+            EXPECT_GT(sum, 0.0) << what;
+            const bool extra_edges =
+                std::any_of(layers.begin(), layers.end(), [](const ExrLayer& layer) {
+                    return layer.name.rfind("edge_", 0) == 0 && layer.name != "edge_1_0" &&
+                           layer.name != "edge_0_1";
+                });
+            EXPECT_EQ(extra_edges, neighbours == "adap") << what;
+        }
 }
 
 }  // namespace

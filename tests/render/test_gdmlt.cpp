@@ -325,5 +325,78 @@ TEST(Gdmlt, EveryShiftFailsAndTheImageIsStillFiniteAndRight) {
                 4.0 * b_relative_error + 0.01);
 }
 
+TEST(Gdmlt, APixelsShareOfTheChainsDoesNotGrowWithItsLinkCount) {
+    // Two equal diffuse spheres, each smaller than its pixel, under a point light midway, and
+    // nothing else: every shift misses them (D = -C on every link). Pixel A keeps its 4
+    // lattice links; pixel B gets 20 more, to every pixel of the 5x5 window around it (as
+    // ADAP's pixels along image edges do). f* sums |D| over a pixel's links: unscaled, B's
+    // target is (1 + 24) C against A's (1 + 4) C and the chains sit in B 5x as long (measured
+    // 4.87, seed 3); with each difference weighed by lattice links / links (4 / 24), both
+    // targets are 5 C: measured 1.00, 1.07, 1.01, 0.94, 1.05 for seeds 3-7. The bound 1.25 is
+    // 3.5 times the split's noise (below) and a factor 4 from the unscaled ratio.
+    constexpr int kSize = 12;
+    // Pixel centres 2 pixels in from the corners: x = -w/2 + (i + 1/2) w / 12 with
+    // w = 2 * 4 * tan(20 deg) on the plane z = 0 seen from z = 4.
+    const float pixel_size = 2.f * 4.f * std::tan(20.f * 3.14159265f / 180.f) / kSize;
+    const float a = -static_cast<float>(kSize) / 2.f * pixel_size + 2.5f * pixel_size;
+    const std::string centre = std::to_string(a), far_centre = std::to_string(-a);
+    const Scene scene = test::scene_from_xml(test::sensor_xml(kSize, 40.f, "0, 0, 4") + R"(
+        <shape type="sphere"><point name="center" x=")" +
+                                             centre + R"(" y=")" + centre +
+                                             R"(" z="0"/><float name="radius" value="0.05"/></shape>
+        <shape type="sphere"><point name="center" x=")" +
+                                             far_centre + R"(" y=")" + far_centre +
+                                             R"(" z="0"/><float name="radius" value="0.05"/></shape>
+        <emitter type="point"><point name="position" x="0" y="0" z="4"/><rgb name="intensity" value="10"/></emitter>)");
+    // The two sphere pixels: the two brightest of a short path traced image.
+    RenderSettings pt;
+    pt.spp = 256;
+    pt.seed = 1;
+    const RenderOutput look = render_path(scene, pt);
+    std::vector<int> lit;
+    for (int i = 0; i < kSize * kSize; ++i)
+        if (luminance(Rgb(look.image.pixels[3 * i], look.image.pixels[3 * i + 1],
+                          look.image.pixels[3 * i + 2])) > 0.f)
+            lit.push_back(i);
+    ASSERT_EQ(lit.size(), 2u) << "each sphere inside one pixel";
+    const int pixel_a = lit[0], pixel_b = lit[1];
+    const int bx = pixel_b % kSize, by = pixel_b / kSize;
+    ASSERT_TRUE(bx >= 2 && by >= 2 && bx < kSize - 2 && by < kSize - 2);
+
+    // The lattice plus B's window.
+    std::vector<GradientEdge> edges = NeighbourSet::lattice(kSize, kSize).edges();
+    for (int dy = -2; dy <= 2; ++dy)
+        for (int dx = -2; dx <= 2; ++dx) {
+            if (std::abs(dx) + std::abs(dy) <= 1) continue;  // itself and its lattice links
+            const int other = (by + dy) * kSize + bx + dx;
+            edges.push_back({std::min(pixel_b, other), std::max(pixel_b, other)});
+        }
+    std::sort(edges.begin(), edges.end(), [](const GradientEdge& x, const GradientEdge& y) {
+        return canonical_edge_key(x, kSize) < canonical_edge_key(y, kSize);
+    });
+    const NeighbourSet graph = NeighbourSet::from_edges(kSize, kSize, std::move(edges));
+    ASSERT_EQ(graph.links(static_cast<std::size_t>(pixel_a)).size(), 4u);
+    ASSERT_EQ(graph.links(static_cast<std::size_t>(pixel_b)).size(), 24u);
+
+    mlt::GdmltSettings s = small_gdmlt(3, 512);
+    // The chains rarely cross between the two pixels (a large step must land on the other
+    // sphere): their split is that of their starts, drawn from the bootstrap's hits (0.2% of
+    // its samples). 1024 chains from ~800 hits split with a relative noise of about 7%.
+    s.chains = 1024;
+    s.bootstrap_samples = 400000;
+    const mlt::GdmltOutput out = mlt::render_gdmlt(scene, s, graph);
+    const manifold::ShiftCounters& shifts = out.stats.shifts;
+    ASSERT_GT(shifts.shifts, 10000u);
+    EXPECT_EQ(shifts.by_status[static_cast<std::size_t>(manifold::ShiftStatus::Ok)], 0u);
+    const double density_a = out.sample_density.pixels[static_cast<std::size_t>(pixel_a)];
+    const double density_b = out.sample_density.pixels[static_cast<std::size_t>(pixel_b)];
+    // Nearly all states are in the two pixels (else the ratio would say little).
+    EXPECT_GT(density_a + density_b, 0.9 * kSize * kSize);
+    const double ratio = density_b / density_a;
+    RecordProperty("density_ratio_b_over_a", std::to_string(ratio));
+    EXPECT_LT(ratio, 1.25);
+    EXPECT_GT(ratio, 1.0 / 1.25);
+}
+
 }  // namespace
 }  // namespace gdmlt
