@@ -21,8 +21,8 @@ order favour whichever ran first. The machine may be shared: compare integrators
 run of this script, never across runs.
 
 An integrator may carry options as a variant, `NAME:KEY=VALUE[,KEY=VALUE...]`, which adds
-`--KEY VALUE` to that run only, e.g. `--integrators gdpt gdpt:shift=reconnect` compares GDPT
-with and without the manifold shift in one run.
+`--KEY VALUE` to that run only (a bare `KEY` adds the flag `--KEY`), e.g. `--integrators gdpt
+gdpt:shift=reconnect` compares GDPT with and without the manifold shift in one run.
 
 Mitsuba
 -------
@@ -81,14 +81,15 @@ OVER_BUDGET = 1.25  # a gdmlt run longer than this x --time is flagged (reconstr
 # --------------------------------------------------------------------------------------------
 
 def parse_variant(spec):
-    """'gdpt:shift=reconnect,foo=1' -> ('gdpt', ['--shift', 'reconnect', '--foo', '1'])."""
+    """'gdpt:shift=reconnect,foo=1,bar' -> ('gdpt', ['--shift', 'reconnect', '--foo', '1', '--bar']):
+    a KEY without '=' is a flag (`--adap-mutual`)."""
     name, _, options = spec.partition(":")
     args = []
     for option in filter(None, options.split(",")):
         key, sep, value = option.partition("=")
-        if not sep:
-            raise SystemExit(f"integrator variant option without a value: {option!r} in {spec!r}")
-        args += [f"--{key}", value]
+        if not key or (sep and not value):
+            raise SystemExit(f"integrator variant option {option!r} in {spec!r}: KEY=VALUE or KEY")
+        args += [f"--{key}", value] if sep else [f"--{key}"]
     return name, args
 
 

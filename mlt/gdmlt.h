@@ -8,14 +8,15 @@
 // position) and its shifts to i's neighbours (a NeighbourSet, the lattice by default). Per
 // neighbour link k the state carries the MIS-weighted difference D_k(u) (mlt/gradient_sample.h)
 // and the chain's target is
-//     f*(u) = sum_k Y(|D_k(u)|) + w * Y(C(u))                                         (GDMLT eq. 9)
-// with C the base's primal contribution, |.| per colour channel, Y the luminance and w the
-// primal weight. f* > 0 wherever C or any D_k is non-zero, so the chain covers everything it
-// splats. Splats (chain runner, Kelemen weights with b* = E_u[f*]): C into the pixel's primal,
-// D_k into its edge (with the sign of the edge's orientation). The primal, the differences and
-// b* thus share one chain; the screened Poisson solve turns them into the image. Very direct
-// light (emitters seen from the camera) is never shifted: a short path-traced pass renders it
-// into its own layer, added after the solve.
+//     f*(u) = s_i sum_k Y(|D_k(u)|) + w * Y(C(u))                                     (GDMLT eq. 9)
+// with C the base's primal contribution, |.| per colour channel, Y the luminance, w the
+// primal weight and s_i = (i's lattice link count) / (i's link count), 1 on the lattice (a
+// pixel with many ADAP links would otherwise draw the chains by its link count). f* > 0 wherever C
+// or any D_k is non-zero, so the chain covers everything it splats. Splats (chain runner, Kelemen
+// weights with b* = E_u[f*]): C into the pixel's primal, D_k into its edge (with the sign of the
+// edge's orientation). The primal, the differences and b* thus share one chain; the screened
+// Poisson solve turns them into the image. Very direct light (emitters seen from the camera) is
+// never shifted: a short path-traced pass renders it into its own layer, added after the solve.
 #include <atomic>
 #include <functional>
 
