@@ -10,8 +10,6 @@
 #include <cmath>
 #include <functional>
 
-#include "core/render/adap_selection.h"
-#include "core/render/feature_pass.h"
 #include "core/render/render_path.h"
 #include "mlt/gdmlt.h"
 #include "mlt/gdpt.h"
@@ -208,11 +206,7 @@ TEST(Gdmlt, OnAnAdapGraphTheSameSeedGivesTheSameBuffersAtOneAndTwoThreads) {
     s.chains = 40;
     s.bootstrap_samples = 4000;
     const auto [one, two] = test::at_one_and_two_threads([&] {
-        FeatureSettings fs;
-        fs.spp = 4;
-        fs.seed = 5;
-        const NeighbourSet graph =
-            select_adap_neighbours(render_features(scene, fs), AdapSettings{});
+        const NeighbourSet graph = test::adap_graph(scene);
         return std::pair(graph.edges(), mlt::render_gdmlt(scene, s, graph));
     });
     EXPECT_EQ(one.first, two.first);
@@ -400,9 +394,6 @@ TEST(Gdmlt, APixelsShareOfTheChainsDoesNotGrowWithItsLinkCount) {
             const int other = (by + dy) * kSize + bx + dx;
             edges.push_back({std::min(pixel_b, other), std::max(pixel_b, other)});
         }
-    std::sort(edges.begin(), edges.end(), [](const GradientEdge& x, const GradientEdge& y) {
-        return canonical_edge_key(x, kSize) < canonical_edge_key(y, kSize);
-    });
     const NeighbourSet graph = NeighbourSet::from_edges(kSize, kSize, std::move(edges));
     ASSERT_EQ(graph.links(static_cast<std::size_t>(pixel_a)).size(), 4u);
     ASSERT_EQ(graph.links(static_cast<std::size_t>(pixel_b)).size(), 24u);

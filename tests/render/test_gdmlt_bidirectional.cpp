@@ -309,8 +309,8 @@ TEST(GdmltBidirectional, WithALightTracingPassTheSameSeedGivesTheSameBuffersAtOn
     const mlt::GdmltOutput one =
         expect_same_buffers_at_one_and_two_threads([](mlt::GdmltSettings& s) {
             s.light_tracing_pass = true;
-            s.light_tracing_spp =
-                64;  // 9216 light paths: three work items of 4096, so both threads trace
+            // 9216 light paths: three work items of 4096, so both threads trace.
+            s.light_tracing_spp = 64;
         });
     EXPECT_GT(one.stats.light_paths, 0u);
     EXPECT_GT(test::mean_luminance(one.buffers.very_direct), 0.0);

@@ -13,8 +13,6 @@
 
 #include "core/image/gradient_layers.h"
 #include "core/image/image_io.h"
-#include "core/render/adap_selection.h"
-#include "core/render/feature_pass.h"
 #include "core/render/render_path.h"
 #include "mlt/gdpt.h"
 #include "reconstruct/reconstruct.h"
@@ -24,14 +22,6 @@
 
 namespace gdmlt {
 namespace {
-
-/// ADAP's graph for a scene: feature pass (4 spp, seed 5) and default selection.
-NeighbourSet adap_graph(const Scene& scene) {
-    FeatureSettings fs;
-    fs.spp = 4;
-    fs.seed = 5;
-    return select_adap_neighbours(render_features(scene, fs), AdapSettings{});
-}
 
 void check_against_path_tracer(bool glass, double primal_bound, double final_bound,
                                bool adap = false,
@@ -45,7 +35,7 @@ void check_against_path_tracer(bool glass, double primal_bound, double final_bou
     settings.path.max_depth = 8;
     const Film& film = scene.camera().film();
     const NeighbourSet graph =
-        adap ? adap_graph(scene) : NeighbourSet::lattice(film.crop_width, film.crop_height);
+        adap ? test::adap_graph(scene) : NeighbourSet::lattice(film.crop_width, film.crop_height);
     if (adap) {
         // The test is about a graph that differs from the lattice.
         EXPECT_NE(graph.edges(), NeighbourSet::lattice(24, 24).edges());
@@ -108,7 +98,7 @@ TEST(Gdpt, AdapGraphAndImageAreBitIdenticalAtOneAndTwoThreads) {
     for (int t = 0; t < 2; ++t) {
         tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                                   static_cast<std::size_t>(t + 1));
-        graph[t] = adap_graph(scene);
+        graph[t] = test::adap_graph(scene);
         buffers[t] = mlt::render_gdpt(scene, settings, graph[t]).buffers;
     }
     EXPECT_EQ(graph[0].edges(), graph[1].edges());

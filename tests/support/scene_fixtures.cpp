@@ -5,6 +5,8 @@
 
 #include <cmath>
 
+#include "core/render/adap_selection.h"
+#include "core/render/feature_pass.h"
 #include "core/scene/scene_desc.h"
 
 namespace gdmlt::test {
@@ -125,6 +127,13 @@ RenderOutput reference_render(const Scene& scene) {
     pt.seed = 1;
     pt.path.max_depth = 8;
     return render_path(scene, pt);
+}
+
+NeighbourSet adap_graph(const Scene& scene) {
+    FeatureSettings fs;
+    fs.spp = 4;
+    fs.seed = 5;
+    return select_adap_neighbours(render_features(scene, fs), AdapSettings{});
 }
 
 double mean_luminance(const Image& image) {

@@ -7,6 +7,7 @@
 #include <string>
 #include <utility>
 
+#include "core/image/neighbour_set.h"
 #include "core/render/render_path.h"
 #include "core/scene/scene.h"
 
@@ -37,6 +38,9 @@ PixelStatistics pixel_statistics(const std::vector<float>& rgb, int channel);
 
 /// The render tests' reference: the path tracer at 4096 spp, seed 1, max_depth 8.
 RenderOutput reference_render(const Scene& scene);
+
+/// ADAP's graph for a scene: feature pass (4 spp, seed 5) and the default selection.
+NeighbourSet adap_graph(const Scene& scene);
 
 /// Mean luminance of an RGB image.
 double mean_luminance(const Image& image);
