@@ -13,7 +13,7 @@ using Block = Eigen::Matrix<double, 2, Columns>;
 
 template <int Columns>
 std::optional<BlockSolution<Columns>> dense_solve(const BlockTridiagonal& system,
-                                                  const std::vector<Block<Columns>>& rhs,
+                                                  std::span<const Block<Columns>> rhs,
                                                   const BlockSolveSettings& settings) {
     const std::size_t n = system.size();
     const Eigen::MatrixXd m = system.dense();
@@ -47,14 +47,14 @@ std::optional<BlockSolution<Columns>> dense_solve(const BlockTridiagonal& system
 
 template <int Columns>
 std::optional<BlockSolution<Columns>> thomas_solve(const BlockTridiagonal& system,
-                                                   const std::vector<Block<Columns>>& rhs,
+                                                   std::span<const Block<Columns>> rhs,
                                                    const BlockSolveSettings& settings) {
     const std::size_t n = system.size();
     if (rhs.size() != n) return std::nullopt;
     BlockSolution<Columns> out;
     if (n == 0) return out;
-    std::vector<Mat2d> pivot_inverse(n);
-    std::vector<Block<Columns>> y(n);
+    ChainArray<Mat2d> pivot_inverse(n);
+    ChainArray<Block<Columns>> y(n);
     // Forward elimination: D_0 = B_0, D_i = B_i - A_i D_{i-1}^-1 C_{i-1}; same on the rhs.
     for (std::size_t i = 0; i < n; ++i) {
         Mat2d d = system.diagonal[i];
@@ -102,12 +102,12 @@ Eigen::MatrixXd BlockTridiagonal::dense() const {
     return m;
 }
 
-std::optional<BlockSolution<1>> solve(const BlockTridiagonal& system, const std::vector<Vec2d>& rhs,
+std::optional<BlockSolution<1>> solve(const BlockTridiagonal& system, std::span<const Vec2d> rhs,
                                       const BlockSolveSettings& settings) {
     return thomas_solve<1>(system, rhs, settings);
 }
 
-std::optional<BlockSolution<2>> solve(const BlockTridiagonal& system, const std::vector<Mat2d>& rhs,
+std::optional<BlockSolution<2>> solve(const BlockTridiagonal& system, std::span<const Mat2d> rhs,
                                       const BlockSolveSettings& settings) {
     return thomas_solve<2>(system, rhs, settings);
 }
@@ -115,7 +115,7 @@ std::optional<BlockSolution<2>> solve(const BlockTridiagonal& system, const std:
 std::optional<double> log_abs_determinant(const BlockTridiagonal& system,
                                           const BlockSolveSettings& settings) {
     const std::optional<BlockSolution<1>> s =
-        solve(system, std::vector<Vec2d>(system.size(), Vec2d::Zero()), settings);
+        solve(system, as_span(ChainArray<Vec2d>(system.size(), Vec2d::Zero())), settings);
     if (!s) return std::nullopt;
     return s->log_abs_determinant;
 }

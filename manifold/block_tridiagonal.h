@@ -11,14 +11,15 @@
 // pivoting is unreliable, so we fall back to a dense fully pivoted LU of the 2n x 2n matrix (chains
 // are short) and report singularity only when that fails too.
 #include <optional>
-#include <vector>
+#include <span>
 
+#include "manifold/chain_array.h"
 #include "manifold/surface_point.h"
 
 namespace gdmlt::manifold {
 
 struct BlockTridiagonal {
-    std::vector<Mat2d> lower, diagonal, upper;  // all of size n
+    ChainArray<Mat2d> lower, diagonal, upper;  // all of size n
 
     explicit BlockTridiagonal(std::size_t n = 0)
         : lower(n, Mat2d::Zero()), diagonal(n, Mat2d::Zero()), upper(n, Mat2d::Zero()) {}
@@ -37,16 +38,16 @@ struct BlockSolveSettings {
 /// Solution blocks X_i (2 x m each, m = 1 or 2) and log|det| of the matrix.
 template <int Columns>
 struct BlockSolution {
-    std::vector<Eigen::Matrix<double, 2, Columns>> x;
+    ChainArray<Eigen::Matrix<double, 2, Columns>> x;
     double log_abs_determinant = 0.0;
     bool used_dense_fallback = false;
 };
 
 /// Solves the system for right-hand sides with one column (a displacement) or two (a tangent
 /// map). Empty when the matrix is singular (relative to the threshold) or not finite.
-std::optional<BlockSolution<1>> solve(const BlockTridiagonal& system, const std::vector<Vec2d>& rhs,
+std::optional<BlockSolution<1>> solve(const BlockTridiagonal& system, std::span<const Vec2d> rhs,
                                       const BlockSolveSettings& settings = {});
-std::optional<BlockSolution<2>> solve(const BlockTridiagonal& system, const std::vector<Mat2d>& rhs,
+std::optional<BlockSolution<2>> solve(const BlockTridiagonal& system, std::span<const Mat2d> rhs,
                                       const BlockSolveSettings& settings = {});
 
 /// log|det| of the matrix alone; empty when singular.

@@ -23,7 +23,6 @@
 // The frame moves with x_i (the normal turns, dp_du changes on a sphere): those terms are part
 // of B_i (Jakob & Marschner 2012, sec. 4.2 "the tangent frame rotates").
 #include <optional>
-#include <vector>
 
 #include "manifold/block_tridiagonal.h"
 #include "manifold/specular_chain.h"
@@ -83,8 +82,8 @@ enum class SlopeTarget {
 struct ChainSystem {
     BlockTridiagonal matrix;
     Mat2d end_coupling = Mat2d::Zero();
-    std::vector<Vec2d> values;    // c_i
-    std::vector<double> h_dot_n;  // H.n per vertex
+    ChainArray<Vec2d> values;    // c_i
+    ChainArray<double> h_dot_n;  // H.n per vertex
 };
 
 /// Empty for a chain without interior vertices, zero-length segments or degenerate frames.

@@ -32,10 +32,10 @@ std::optional<Mat2d> first_vertex_tangent_map(const SpecularChain& chain, const 
                                               double singular_threshold) {
     const std::optional<ChainSystem> system = chain_system(chain, tangents);
     if (!system) return std::nullopt;
-    std::vector<Mat2d> rhs(chain.size(), Mat2d::Zero());
+    ChainArray<Mat2d> rhs(chain.size(), Mat2d::Zero());
     rhs.back() = -system->end_coupling;
     const std::optional<BlockSolution<2>> solution =
-        solve(system->matrix, rhs, BlockSolveSettings{singular_threshold});
+        solve(system->matrix, as_span(rhs), BlockSolveSettings{singular_threshold});
     if (!solution) return std::nullopt;
     return solution->x[0];
 }
@@ -69,7 +69,7 @@ LogTerm log_generalized_geometry_term(const SpecularChain& chain) {
 
 LogTerm log_half_vector_jacobian(const SpecularChain& chain) {
     const std::size_t k = chain.size();
-    std::vector<std::size_t> delta, glossy;
+    ChainArray<std::size_t> delta, glossy;
     for (std::size_t i = 0; i < k; ++i)
         (chain.vertices[i].roughness == RoughnessClass::Glossy ? glossy : delta).push_back(i);
     if (glossy.empty()) return LogTerm{};

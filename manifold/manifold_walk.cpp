@@ -117,10 +117,10 @@ WalkResult walk(const Scene& scene, const SpecularChain& chain, const ChainEndpo
             // Row k couples x_k to the end: move the known end displacement to the rhs.
             const Vec2d end_step(plane.tangents[0].dot(remaining),
                                  plane.tangents[1].dot(remaining));
-            std::vector<Vec2d> rhs(current.size(), Vec2d::Zero());
+            ChainArray<Vec2d> rhs(current.size(), Vec2d::Zero());
             rhs.back() = -system->end_coupling * end_step;
             const std::optional<BlockSolution<1>> solution =
-                solve(system->matrix, rhs, solve_settings);
+                solve(system->matrix, as_span(rhs), solve_settings);
             if (!solution) {
                 result.failure = WalkFailure::SingularMatrix;
                 return result;

@@ -2,6 +2,7 @@
 #include "manifold/shift.h"
 
 #include <cmath>
+#include <utility>
 
 #include "manifold/chain_trace.h"
 #include "manifold/generalized_geometry.h"
@@ -203,10 +204,10 @@ ShiftStatus manifold_shift(const Scene& scene, const Path& base, std::size_t k, 
     PathVertex& yk = y.vertices.back();
 
     // The base chain, oriented from the pinned x_m (walk start) to x_k (the moving end).
-    std::vector<SurfaceInteraction> specular;
+    ChainArray<SurfaceInteraction> specular;
     for (std::size_t j = m - 1; j > k; --j) specular.push_back(base.vertices[j].si);
     const ChainOutcome built =
-        build_chain(scene, endpoint_at(scene, xm.si), specular, endpoint_at(scene, xk.si));
+        build_chain(scene, endpoint_at(scene, xm.si), as_span(specular), endpoint_at(scene, xk.si));
     if (!built.ok()) return manifold_status(built.failure);
     // The float vertices satisfy the half-vector constraints only to float precision, which
     // the chain amplifies (1e-4 of the scene at the end of a glass sphere's chain). Make the
@@ -256,6 +257,7 @@ ShiftStatus manifold_shift(const Scene& scene, const Path& base, std::size_t k, 
         return ShiftStatus::ManifoldOccluded;
 
     std::vector<PathVertex> added;
+    added.reserve(m - k - 1);
     for (std::size_t j = k + 1; j < m; ++j) {
         const ChainVertex& cv = walked.vertices[m - 1 - j];
         const PathVertex& xj = base.vertices[j];
@@ -385,10 +387,15 @@ ShiftResult shift_path(const Scene& scene, const Path& base, const Vec2f& film_o
         result.status = status;
         result.valid_vertices = valid;
         ++counters.by_status[static_cast<std::size_t>(status)];
-        return result;
+        // Moved, not copied: `result` is a capture, so returning it by name would copy the
+        // offset path (an allocation and every vertex) on every shift.
+        return std::move(result);
     };
 
     const std::size_t n = base.vertices.size();
+    // The offset has at most the base's vertices: allocate once (see sample_camera_path).
+    y.vertices.reserve(n);
+    result.log_jacobian.reserve(n);
     for (std::size_t k = 0;; ++k) {
         // Trace the offset's ray to its vertex k (k = 0: the shifted primary ray).
         const SurfaceInteraction si = scene.intersect(ray);
@@ -534,6 +541,8 @@ std::vector<Contribution> path_contributions(const Scene& scene, const Path& pat
                                              const std::vector<double>& log_jacobian,
                                              int valid_vertices, bool hide_emitters) {
     std::vector<Contribution> out;
+    // At most an emitter hit and a next-event term per vertex, and an escape.
+    out.reserve(2 * path.vertices.size() + 1);
     Rgb f_prefix = Rgb::Ones();  // product of f over the directions leaving vertices < k
     double pdf_prefix = 1.0;     // same for the pdfs (the camera direction: 1)
     double log_j_prefix = 0.0;

@@ -9,10 +9,10 @@
 // "Direction of travel" below means start -> end (the direction rays are traced), which need not
 // be the direction light flows: the generalized half-vector constraint is symmetric.
 #include <span>
-#include <vector>
 
 #include "core/bsdf/roughness_class.h"
 #include "core/scene/scene.h"
+#include "manifold/chain_array.h"
 #include "manifold/surface_point.h"
 #include "manifold/walk_failure.h"
 
@@ -49,9 +49,9 @@ struct ChainVertex {
 };
 
 struct SpecularChain {
-    ChainEndpoint start;                // x_0, fixed by the walk
-    std::vector<ChainVertex> vertices;  // x_1 .. x_k
-    ChainEndpoint end;                  // x_{k+1}, moved by the walk
+    ChainEndpoint start;               // x_0, fixed by the walk
+    ChainArray<ChainVertex> vertices;  // x_1 .. x_k
+    ChainEndpoint end;                 // x_{k+1}, moved by the walk
 
     std::size_t size() const { return vertices.size(); }
     /// Position of chain vertex i in 0..k+1 (0 = start, k+1 = end).

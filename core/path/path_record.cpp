@@ -6,6 +6,10 @@ namespace gdmlt {
 Path sample_camera_path(const Scene& scene, const Vec2f& film_position, SampleStream& stream,
                         const PathSamplerSettings& settings, PathCounters& counters) {
     Path path;
+    // One allocation per path instead of a growing vector's four or five (GDMLT samples a
+    // path and shifts it four times per proposal; the allocator was 10% of its time).
+    path.vertices.reserve(settings.max_depth > 0 ? static_cast<std::size_t>(settings.max_depth)
+                                                 : std::size_t{16});
     path.film_position = film_position;
     Ray ray = scene.camera().generate_ray(film_position);
     path.camera_position = ray.origin;
