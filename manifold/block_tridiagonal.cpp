@@ -36,7 +36,7 @@ std::optional<BlockSolution<Columns>> dense_solve(const BlockTridiagonal& system
     if (!x.allFinite()) return std::nullopt;
     BlockSolution<Columns> out;
     out.used_dense_fallback = true;
-    out.x.resize(n);
+    out.x.assign(n, Block<Columns>::Zero());
     for (std::size_t i = 0; i < n; ++i)
         out.x[i] = x.middleRows(static_cast<Eigen::Index>(2 * i), 2);
     for (Eigen::Index i = 0; i < n2; ++i)
@@ -53,8 +53,8 @@ std::optional<BlockSolution<Columns>> thomas_solve(const BlockTridiagonal& syste
     if (rhs.size() != n) return std::nullopt;
     BlockSolution<Columns> out;
     if (n == 0) return out;
-    ChainArray<Mat2d> pivot_inverse(n);
-    ChainArray<Block<Columns>> y(n);
+    ChainArray<Mat2d> pivot_inverse(n, Mat2d::Zero());
+    ChainArray<Block<Columns>> y(n, Block<Columns>::Zero());
     // Forward elimination: D_0 = B_0, D_i = B_i - A_i D_{i-1}^-1 C_{i-1}; same on the rhs.
     for (std::size_t i = 0; i < n; ++i) {
         Mat2d d = system.diagonal[i];
@@ -77,7 +77,7 @@ std::optional<BlockSolution<Columns>> thomas_solve(const BlockTridiagonal& syste
         out.log_abs_determinant += std::log(std::abs(det));
     }
     // Back substitution: X_{n-1} = D^-1 Y_{n-1}, X_i = D_i^-1 (Y_i - C_i X_{i+1}).
-    out.x.resize(n);
+    out.x.assign(n, Block<Columns>::Zero());
     out.x[n - 1] = pivot_inverse[n - 1] * y[n - 1];
     for (std::size_t i = n - 1; i-- > 0;)
         out.x[i] = pivot_inverse[i] * (y[i] - system.upper[i] * out.x[i + 1]);

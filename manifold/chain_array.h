@@ -21,6 +21,10 @@ inline constexpr std::size_t kChainInlineVertices = 4;
 template <class T>
 using ChainArray = boost::container::small_vector<T, kChainInlineVertices>;
 
+// Size arrays of Eigen types with an explicit value (ChainArray(n, v), assign(n, v)): resize(n)
+// value-initialises through a temporary that GCC 12 at -O2 reports as maybe-uninitialized
+// inside Boost (a false positive, but the sanitizer build prints it).
+
 /// A view of the elements (Boost's iterators are not std::contiguous_iterator, so std::span
 /// does not convert from the container by itself).
 template <class T>

@@ -136,8 +136,8 @@ std::optional<ChainSystem> chain_system(const SpecularChain& chain, const Tangen
     if (k == 0) return std::nullopt;
     ChainSystem system;
     system.matrix = BlockTridiagonal(k);
-    system.values.resize(k);
-    system.h_dot_n.resize(k);
+    system.values.assign(k, Vec2d::Zero());
+    system.h_dot_n.assign(k, 0.0);
     // The start is pinned, so row 0's lower block is never used; any tangents will do.
     const Tangents start_tangents = tangents_around(Vec3d::UnitZ());
     for (std::size_t i = 0; i < k; ++i) {
