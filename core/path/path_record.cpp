@@ -1,4 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
+#include <algorithm>
+
 #include "core/path/path.h"
 
 namespace gdmlt {
@@ -7,9 +9,13 @@ Path sample_camera_path(const Scene& scene, const Vec2f& film_position, SampleSt
                         const PathSamplerSettings& settings, PathCounters& counters) {
     Path path;
     // One allocation per path instead of a growing vector's four or five (GDMLT samples a
-    // path and shifts it four times per proposal; the allocator was 10% of its time).
-    path.vertices.reserve(settings.max_depth > 0 ? static_cast<std::size_t>(settings.max_depth)
-                                                 : std::size_t{16});
+    // path and shifts it four times per proposal; the allocator was 10% of its time). Capped:
+    // a max_depth of thousands must not make every path allocate (and map) that many vertices
+    // of ~300 bytes; the rare longer path grows as before.
+    constexpr int kReservedVertices = 16;
+    path.vertices.reserve(static_cast<std::size_t>(
+        settings.max_depth > 0 ? std::min(settings.max_depth, kReservedVertices)
+                               : kReservedVertices));
     path.film_position = film_position;
     Ray ray = scene.camera().generate_ray(film_position);
     path.camera_position = ray.origin;
