@@ -3,6 +3,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 
@@ -119,6 +120,70 @@ bool Accelerator::occluded(const Ray& ray) const {
     rtcOccluded1(impl_->scene, &context, &r);
     // Embree sets tfar to -inf when the ray is blocked.
     return r.tfar < 0.f;
+}
+
+void Accelerator::intersect_packet(std::span<const Ray> rays, std::span<RayHit> hits) const {
+    const int count = static_cast<int>(rays.size());
+    if (count == 0) return;
+    // Lanes past `count` are masked off (valid = 0) and never read.
+    alignas(64) int valid[kPacketSize];
+    alignas(64) RTCRayHit16 packet;
+    for (int i = 0; i < kPacketSize; ++i) {
+        valid[i] = i < count ? -1 : 0;
+        const Ray& ray = rays[static_cast<std::size_t>(std::min(i, count - 1))];
+        packet.ray.org_x[i] = ray.origin.x();
+        packet.ray.org_y[i] = ray.origin.y();
+        packet.ray.org_z[i] = ray.origin.z();
+        packet.ray.dir_x[i] = ray.direction.x();
+        packet.ray.dir_y[i] = ray.direction.y();
+        packet.ray.dir_z[i] = ray.direction.z();
+        packet.ray.tnear[i] = 0.f;
+        packet.ray.tfar[i] = ray.t_max;
+        packet.ray.mask[i] = ~0u;
+        packet.ray.flags[i] = 0;
+        packet.ray.time[i] = 0.f;
+        packet.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+        packet.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    }
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    rtcIntersect16(valid, impl_->scene, &context, &packet);
+    for (int i = 0; i < count; ++i) {
+        RayHit& hit = hits[static_cast<std::size_t>(i)];
+        hit = RayHit{};
+        if (packet.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
+        hit.t = packet.ray.tfar[i];
+        hit.barycentric = Vec2f(packet.hit.u[i], packet.hit.v[i]);
+        hit.shape = static_cast<std::int32_t>(packet.hit.geomID[i]);
+        hit.primitive = packet.hit.primID[i];
+    }
+}
+
+void Accelerator::occluded_packet(std::span<const Ray> rays, std::span<bool> occluded) const {
+    const int count = static_cast<int>(rays.size());
+    if (count == 0) return;
+    alignas(64) int valid[kPacketSize];
+    alignas(64) RTCRay16 packet;
+    for (int i = 0; i < kPacketSize; ++i) {
+        valid[i] = i < count ? -1 : 0;
+        const Ray& ray = rays[static_cast<std::size_t>(std::min(i, count - 1))];
+        packet.org_x[i] = ray.origin.x();
+        packet.org_y[i] = ray.origin.y();
+        packet.org_z[i] = ray.origin.z();
+        packet.dir_x[i] = ray.direction.x();
+        packet.dir_y[i] = ray.direction.y();
+        packet.dir_z[i] = ray.direction.z();
+        packet.tnear[i] = 0.f;
+        packet.tfar[i] = ray.t_max;
+        packet.mask[i] = ~0u;
+        packet.flags[i] = 0;
+        packet.time[i] = 0.f;
+    }
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    rtcOccluded16(valid, impl_->scene, &context, &packet);
+    // Embree sets tfar to -inf when the ray is blocked.
+    for (int i = 0; i < count; ++i) occluded[static_cast<std::size_t>(i)] = packet.tfar[i] < 0.f;
 }
 
 }  // namespace gdmlt

@@ -57,6 +57,50 @@ Rgb sample_path_radiance(const Scene& scene, const Ray& camera_ray, SampleStream
 Rgb sample_path_radiance(const Scene& scene, const Ray& camera_ray, IndependentStream& stream,
                          const PathSamplerSettings& settings, PathCounters& counters);
 
+/// One path's estimator state between two vertices, for drivers that advance many paths at once
+/// and trace their rays in packets (render_path). sample_path_radiance is the one-path loop:
+///
+///     PathState state = start_path(camera_ray, counters);
+///     do {
+///         continue_path(scene, scene.intersect(state.ray), stream, settings, counters, state,
+///                       next_event);
+///         if (next_event.requested && !scene.occluded(next_event.shadow))
+///             state.radiance += next_event.contribution;
+///     } while (state.active);
+struct PathState {
+    Ray ray;                       // the ray to trace next (valid while active)
+    Rgb radiance = Rgb::Zero();    // the estimate so far
+    Rgb throughput = Rgb::Ones();  // path throughput weight up to the ray's origin
+    float eta_product = 1.f;       // product of relative IORs crossed, for Russian roulette
+    // What produced the current ray: MIS for emitters hit by it needs the BSDF pdf and the
+    // point it left from. The camera ray counts as a delta "sample".
+    float prev_pdf_bsdf = 0.f;
+    bool prev_delta = true;
+    Vec3f prev_p = Vec3f::Zero();
+    int depth = 0;  // segments before the current ray
+    bool active = true;
+};
+
+/// A shadow ray next-event estimation asks the driver to trace: when it is unblocked,
+/// `contribution` is added to the path's radiance (before the path's next vertex).
+struct NextEventRay {
+    Ray shadow;
+    Rgb contribution = Rgb::Zero();
+    bool requested = false;
+};
+
+/// A path starting with `camera_ray` (counted as a path and a camera ray).
+PathState start_path(const Ray& camera_ray, PathCounters& counters);
+
+/// Consumes the vertex `si` that `state.ray` found (invalid: the ray escaped): emission,
+/// next-event estimation (returned in `next_event` for the caller to trace), BSDF sampling and
+/// Russian roulette; leaves `state.active` true with the next ray in `state.ray`, or false.
+/// Draws the same kDimensionsPerBounce numbers per vertex as sample_path_radiance, so a path
+/// advanced this way gives the same estimate from the same stream.
+void continue_path(const Scene& scene, const SurfaceInteraction& si, IndependentStream& stream,
+                   const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
+                   NextEventRay& next_event);
+
 /// Power heuristic with exponent 2 (Veach 1997, eq. 9.13), safe for zero and infinite pdfs.
 inline float power_heuristic(float pdf_a, float pdf_b) {
     const float a2 = pdf_a * pdf_a, b2 = pdf_b * pdf_b;

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <utility>
 
 #include "core/camera/camera.h"
 #include "core/math/stopwatch.h"
@@ -46,14 +47,40 @@ struct PixelPassResult {
     bool interrupted = false;
 };
 
-/// Calls `sample(x, y, film_position, stream)` for every crop-window pixel (x, y) and sample
-/// index, in passes; `on_pass_done(spp_completed)` after each pass, `samples_done` (optional)
-/// counts samples as tiles finish. `sample` must only write state owned by pixel (x, y).
-template <typename SampleFn, typename PassFn>
-PixelPassResult run_pixel_passes(const Film& film, const PixelPassSettings& settings,
-                                 const std::atomic<bool>* cancel, SampleFn&& sample,
-                                 PassFn&& on_pass_done,
-                                 std::atomic<std::uint64_t>* samples_done = nullptr) {
+/// One tile's share of a pass: crop-window pixels [x0, x1) x [y0, y1), each with the sample
+/// indices [first_sample, first_sample + sample_count).
+struct PixelTile {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    int first_sample = 0, sample_count = 0;
+};
+
+/// The random stream of sample `index` of crop-window pixel (x, y), and its film position
+/// (the pixel's corner plus a jitter drawn first from the stream).
+struct PixelSample {
+    IndependentStream stream;
+    Vec2f film_position;
+};
+inline PixelSample pixel_sample(const Film& film, std::uint64_t seed, int x, int y, int index) {
+    const int film_x = x + film.crop_offset_x, film_y = y + film.crop_offset_y;
+    const auto pixel = static_cast<std::uint64_t>(film_y) * film.width + film_x;
+    PixelSample s{IndependentStream(derive_stream(seed, pixel, static_cast<std::uint64_t>(index))),
+                  Vec2f::Zero()};
+    const Vec2f jitter = s.stream.next_2d();
+    s.film_position =
+        Vec2f(static_cast<float>(film_x) + jitter.x(), static_cast<float>(film_y) + jitter.y());
+    return s;
+}
+
+/// Runs the passes: calls `sample_tile(tile)` for every tile of every pass, on all cores;
+/// `sample_tile` returns false if it stopped early because `cancel` was set, and must only
+/// write state owned by the tile's pixels, drawing sample s of pixel (x, y) from
+/// pixel_sample(film, settings.seed, x, y, s). `on_pass_done(spp_completed)` after each pass;
+/// `samples_done` (optional) counts samples as tiles finish.
+template <typename TileFn, typename PassFn>
+PixelPassResult run_tile_passes(const Film& film, const PixelPassSettings& settings,
+                                const std::atomic<bool>* cancel, TileFn&& sample_tile,
+                                PassFn&& on_pass_done,
+                                std::atomic<std::uint64_t>* samples_done = nullptr) {
     constexpr int kTileSize = kPixelPassTileSize;
     const auto cancelled = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
     const int width = film.crop_width, height = film.crop_height;
@@ -88,31 +115,19 @@ PixelPassResult run_pixel_passes(const Film& film, const PixelPassSettings& sett
         const Clock::time_point pass_start = Clock::now();
         tbb::parallel_for(
             tbb::blocked_range<int>(0, tile_count), [&](const tbb::blocked_range<int>& r) {
-                for (int tile = r.begin(); tile != r.end(); ++tile) {
-                    const int x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
-                    const int x1 = std::min(x0 + kTileSize, width),
-                              y1 = std::min(y0 + kTileSize, height);
-                    for (int y = y0; y < y1; ++y)
-                        for (int x = x0; x < x1; ++x) {
-                            // Per pixel, not per tile: a tile of a high-spp pass can take minutes.
-                            if (cancelled()) return;
-                            const int film_x = x + film.crop_offset_x,
-                                      film_y = y + film.crop_offset_y;
-                            const auto pixel =
-                                static_cast<std::uint64_t>(film_y) * film.width + film_x;
-                            for (int s = first; s < first + pass; ++s) {
-                                IndependentStream stream(derive_stream(
-                                    settings.seed, pixel, static_cast<std::uint64_t>(s)));
-                                const Vec2f jitter = stream.next_2d();
-                                sample(x, y,
-                                       Vec2f(static_cast<float>(film_x) + jitter.x(),
-                                             static_cast<float>(film_y) + jitter.y()),
-                                       stream);
-                            }
-                        }
+                for (int tile_index = r.begin(); tile_index != r.end(); ++tile_index) {
+                    PixelTile tile;
+                    tile.x0 = (tile_index % tiles_x) * kTileSize;
+                    tile.y0 = (tile_index / tiles_x) * kTileSize;
+                    tile.x1 = std::min(tile.x0 + kTileSize, width);
+                    tile.y1 = std::min(tile.y0 + kTileSize, height);
+                    tile.first_sample = first;
+                    tile.sample_count = pass;
+                    if (!sample_tile(std::as_const(tile))) return;
                     if (samples_done)
                         samples_done->fetch_add(
-                            static_cast<std::uint64_t>((x1 - x0) * (y1 - y0)) * pass,
+                            static_cast<std::uint64_t>((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) *
+                                pass,
                             std::memory_order_relaxed);
                 }
             });
@@ -124,6 +139,32 @@ PixelPassResult run_pixel_passes(const Film& film, const PixelPassSettings& sett
     }
     result.interrupted = cancelled();
     return result;
+}
+
+/// Calls `sample(x, y, film_position, stream)` for every crop-window pixel (x, y) and sample
+/// index, in passes (run_tile_passes); `sample` must only write state owned by pixel (x, y).
+template <typename SampleFn, typename PassFn>
+PixelPassResult run_pixel_passes(const Film& film, const PixelPassSettings& settings,
+                                 const std::atomic<bool>* cancel, SampleFn&& sample,
+                                 PassFn&& on_pass_done,
+                                 std::atomic<std::uint64_t>* samples_done = nullptr) {
+    const auto cancelled = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
+    return run_tile_passes(
+        film, settings, cancel,
+        [&](const PixelTile& tile) {
+            for (int y = tile.y0; y < tile.y1; ++y)
+                for (int x = tile.x0; x < tile.x1; ++x) {
+                    // Per pixel, not per tile: a tile of a high-spp pass can take minutes.
+                    if (cancelled()) return false;
+                    for (int s = tile.first_sample; s < tile.first_sample + tile.sample_count;
+                         ++s) {
+                        PixelSample ps = pixel_sample(film, settings.seed, x, y, s);
+                        sample(x, y, ps.film_position, ps.stream);
+                    }
+                }
+            return true;
+        },
+        std::forward<PassFn>(on_pass_done), samples_done);
 }
 
 }  // namespace gdmlt

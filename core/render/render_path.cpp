@@ -3,10 +3,13 @@
 
 #include <tbb/enumerable_thread_specific.h>
 
+#include <array>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <span>
 #include <thread>
+#include <vector>
 
 #include "core/math/stopwatch.h"
 #include "core/render/film_buffer.h"
@@ -48,6 +51,83 @@ class ProgressReporter {
     std::thread thread_;
 };
 
+/// Paths advanced together. Enough that the rays of one bounce fill packets of 16 even after
+/// Russian roulette and escapes have ended most paths; few enough that their state (about
+/// 120 bytes each) stays in the L1/L2 caches.
+constexpr std::size_t kWavefrontPaths = 256;
+constexpr int kPacket = Accelerator::kPacketSize;
+
+struct WavefrontLane {
+    int x = 0, y = 0;  // crop-window pixel
+    IndependentStream stream;
+    PathState state;
+};
+
+/// The path tracer's wavefront (Laine et al. 2013, "Megakernels considered harmful", in its
+/// simplest form): every path of a batch takes one vertex, their rays traced in packets of 16,
+/// then their shadow rays likewise. Each path's arithmetic and random numbers are those of
+/// sample_path_radiance (continue_path runs the same code), so the image is the same as tracing
+/// path after path, up to Embree's packet and single-ray kernels rounding a hit differently.
+/// Per thread, reused across tiles so that its buffers are allocated once.
+struct Wavefront {
+    std::vector<WavefrontLane> lanes;
+    std::vector<std::uint32_t> active;  // lanes still tracing, in lane order
+    struct Shadow {
+        std::uint32_t lane;
+        NextEventRay ray;
+    };
+    std::vector<Shadow> shadows;
+
+    void run(const Scene& scene, const PathSamplerSettings& path, PathCounters& counters) {
+        active.clear();
+        for (std::uint32_t i = 0; i < lanes.size(); ++i) active.push_back(i);
+        std::array<Ray, kPacket> rays;
+        std::array<RayHit, kPacket> hits;
+        std::array<bool, kPacket> blocked;
+        while (!active.empty()) {
+            shadows.clear();
+            for (std::size_t first = 0; first < active.size(); first += kPacket) {
+                const std::size_t count = std::min<std::size_t>(kPacket, active.size() - first);
+                for (std::size_t k = 0; k < count; ++k)
+                    rays[k] = lanes[active[first + k]].state.ray;
+                scene.intersect_packet(std::span(rays.data(), count), hits);
+                for (std::size_t k = 0; k < count; ++k) {
+                    WavefrontLane& lane = lanes[active[first + k]];
+                    Shadow shadow{active[first + k], {}};
+                    continue_path(scene, scene.interaction(rays[k], hits[k]), lane.stream, path,
+                                  counters, lane.state, shadow.ray);
+                    if (shadow.ray.requested) shadows.push_back(shadow);
+                }
+            }
+            // Shadow rays before any path's next vertex: each path's radiance then sums its
+            // terms in the order sample_path_radiance does.
+            for (std::size_t first = 0; first < shadows.size(); first += kPacket) {
+                const std::size_t count = std::min<std::size_t>(kPacket, shadows.size() - first);
+                for (std::size_t k = 0; k < count; ++k) rays[k] = shadows[first + k].ray.shadow;
+                scene.occluded_packet(std::span(rays.data(), count), blocked);
+                for (std::size_t k = 0; k < count; ++k)
+                    if (!blocked[k])
+                        lanes[shadows[first + k].lane].state.radiance +=
+                            shadows[first + k].ray.contribution;
+            }
+            std::erase_if(active, [&](std::uint32_t i) { return !lanes[i].state.active; });
+        }
+    }
+
+    /// Adds the finished paths to the film in batch order and empties the batch.
+    void flush(FilmBuffer& buffer, std::uint64_t& dropped) {
+        for (const WavefrontLane& lane : lanes) {
+            if (is_finite(lane.state.radiance)) {
+                buffer.add(lane.x, lane.y, lane.state.radiance);
+            } else {
+                buffer.add_dropped(lane.x, lane.y);
+                ++dropped;
+            }
+        }
+        lanes.clear();
+    }
+};
+
 }  // namespace
 
 RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
@@ -80,17 +160,33 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
 
     RenderStats stats;
     const PixelPassSettings passes = pixel_pass_settings(settings, 64);
-    const PixelPassResult done = run_pixel_passes(
+    tbb::enumerable_thread_specific<Wavefront> wavefronts;
+    const PixelPassResult done = run_tile_passes(
         film, passes, cancel,
-        [&](int x, int y, const Vec2f& film_position, IndependentStream& stream) {
-            const Ray ray = scene.camera().generate_ray(film_position);
-            const Rgb L = sample_path_radiance(scene, ray, stream, settings.path, counters.local());
-            if (is_finite(L)) {
-                buffer.add(x, y, L);
-            } else {
-                buffer.add_dropped(x, y);
-                ++dropped.local();
-            }
+        [&](const PixelTile& tile) {
+            Wavefront& wavefront = wavefronts.local();
+            PathCounters& tile_counters = counters.local();
+            std::uint64_t& tile_dropped = dropped.local();
+            // Whole pixels' samples in tile order, kWavefrontPaths at a time (a pixel's samples
+            // may straddle two batches; the film adds them in sample order all the same).
+            for (int y = tile.y0; y < tile.y1; ++y)
+                for (int x = tile.x0; x < tile.x1; ++x) {
+                    if (cancel && cancel->load(std::memory_order_relaxed)) return false;
+                    for (int s = tile.first_sample; s < tile.first_sample + tile.sample_count;
+                         ++s) {
+                        PixelSample ps = pixel_sample(film, passes.seed, x, y, s);
+                        const Ray ray = scene.camera().generate_ray(ps.film_position);
+                        wavefront.lanes.push_back(
+                            WavefrontLane{x, y, ps.stream, start_path(ray, tile_counters)});
+                        if (wavefront.lanes.size() == kWavefrontPaths) {
+                            wavefront.run(scene, settings.path, tile_counters);
+                            wavefront.flush(buffer, tile_dropped);
+                        }
+                    }
+                }
+            wavefront.run(scene, settings.path, tile_counters);
+            wavefront.flush(buffer, tile_dropped);
+            return true;
         },
         [](int) {}, &samples_done);
     stats.passes = done.passes;

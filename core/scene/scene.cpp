@@ -85,7 +85,10 @@ Scene::Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emi
 }
 
 SurfaceInteraction Scene::intersect(const Ray& ray) const {
-    const RayHit hit = accelerator_->intersect(ray);
+    return interaction(ray, accelerator_->intersect(ray));
+}
+
+SurfaceInteraction Scene::interaction(const Ray& ray, const RayHit& hit) const {
     if (!hit.valid()) return SurfaceInteraction{};
     SurfaceInteraction si = shapes_[static_cast<std::size_t>(hit.shape)].interaction(
         hit.primitive, hit.barycentric, ray.origin, ray.direction, hit.t);

@@ -128,6 +128,16 @@ class Scene {
     /// Closest hit with full differential geometry; invalid() on a miss.
     SurfaceInteraction intersect(const Ray& ray) const;
     bool occluded(const Ray& ray) const { return accelerator_->occluded(ray); }
+    /// Packets of up to Accelerator::kPacketSize rays traced together; turn each hit into an
+    /// interaction with interaction(ray, hit) (the same as intersect(ray) gives).
+    void intersect_packet(std::span<const Ray> rays, std::span<RayHit> hits) const {
+        accelerator_->intersect_packet(rays, hits);
+    }
+    void occluded_packet(std::span<const Ray> rays, std::span<bool> occluded) const {
+        accelerator_->occluded_packet(rays, occluded);
+    }
+    /// Full differential geometry at `hit`, found along `ray`; invalid() for a miss.
+    SurfaceInteraction interaction(const Ray& ray, const RayHit& hit) const;
 
     /// Chooses an emitter (proportionally to its power among bounded emitters; the lights at
     /// infinity as a group get the share of one more light, see the constructor) and a point
