@@ -375,8 +375,24 @@ ShiftStatus copy_half_vector(const Scene& scene, const Path& base, std::size_t k
 
 ShiftResult shift_path(const Scene& scene, const Path& base, const Vec2f& film_offset,
                        ShiftKind kind, ShiftCounters& counters) {
-    ++counters.shifts;
     ShiftResult result;
+    shift_path(scene, base, film_offset, kind, counters, result);
+    return result;
+}
+
+void shift_path(const Scene& scene, const Path& base, const Vec2f& film_offset, ShiftKind kind,
+                ShiftCounters& counters, ShiftResult& result) {
+    ++counters.shifts;
+    {
+        // A fresh result that keeps the storage of the one passed in.
+        std::vector<double> log_jacobian = std::move(result.log_jacobian);
+        log_jacobian.clear();
+        reset_keeping_capacity(result.offset);
+        Path offset = std::move(result.offset);
+        result = ShiftResult{};
+        result.offset = std::move(offset);
+        result.log_jacobian = std::move(log_jacobian);
+    }
     Path& y = result.offset;
     y.film_position = base.film_position + film_offset;
     Ray ray = scene.camera().generate_ray(y.film_position);
@@ -387,9 +403,6 @@ ShiftResult shift_path(const Scene& scene, const Path& base, const Vec2f& film_o
         result.status = status;
         result.valid_vertices = valid;
         ++counters.by_status[static_cast<std::size_t>(status)];
-        // Moved, not copied: `result` is a capture, so returning it by name would copy the
-        // offset path (an allocation and every vertex) on every shift.
-        return std::move(result);
     };
 
     const std::size_t n = base.vertices.size();
@@ -541,6 +554,14 @@ std::vector<Contribution> path_contributions(const Scene& scene, const Path& pat
                                              const std::vector<double>& log_jacobian,
                                              int valid_vertices, bool hide_emitters) {
     std::vector<Contribution> out;
+    path_contributions(scene, path, log_jacobian, valid_vertices, hide_emitters, out);
+    return out;
+}
+
+void path_contributions(const Scene& scene, const Path& path,
+                        const std::vector<double>& log_jacobian, int valid_vertices,
+                        bool hide_emitters, std::vector<Contribution>& out) {
+    out.clear();
     // At most an emitter hit and a next-event term per vertex, and an escape.
     out.reserve(2 * path.vertices.size() + 1);
     Rgb f_prefix = Rgb::Ones();  // product of f over the directions leaving vertices < k
@@ -616,7 +637,6 @@ std::vector<Contribution> path_contributions(const Scene& scene, const Path& pat
         c.pdf = 1.0;
         out.push_back(c);
     }
-    return out;
 }
 
 }  // namespace gdmlt::manifold

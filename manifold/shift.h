@@ -78,6 +78,9 @@ struct ShiftCounters {
 /// Shifts `base` to the pixel `film_offset` away (e.g. (1, 0)).
 ShiftResult shift_path(const Scene& scene, const Path& base, const Vec2f& film_offset,
                        ShiftKind kind, ShiftCounters& counters);
+/// The same into `result`, whose storage is reused (no allocation once it is large enough).
+void shift_path(const Scene& scene, const Path& base, const Vec2f& film_offset, ShiftKind kind,
+                ShiftCounters& counters, ShiftResult& result);
 
 /// One estimator term of a path: an emitter hit at vertex `vertex`, an escape to the
 /// environment after it, or a next-event connection from it. f and the two pdfs are in the
@@ -97,5 +100,9 @@ struct Contribution {
 std::vector<Contribution> path_contributions(const Scene& scene, const Path& path,
                                              const std::vector<double>& log_jacobian,
                                              int valid_vertices, bool hide_emitters);
+/// The same into `out` (cleared first; its storage is reused).
+void path_contributions(const Scene& scene, const Path& path,
+                        const std::vector<double>& log_jacobian, int valid_vertices,
+                        bool hide_emitters, std::vector<Contribution>& out);
 
 }  // namespace gdmlt::manifold

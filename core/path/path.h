@@ -65,5 +65,10 @@ struct Path {
 /// is not applied (shifts need the whole path; max_depth bounds it).
 Path sample_camera_path(const Scene& scene, const Vec2f& film_position, SampleStream& stream,
                         const PathSamplerSettings& settings, PathCounters& counters);
+/// The same into `path`, whose vertex storage is reused (no allocation once it is large enough).
+void sample_camera_path(const Scene& scene, const Vec2f& film_position, SampleStream& stream,
+                        const PathSamplerSettings& settings, PathCounters& counters, Path& path);
+/// Empties `path` (a default Path) but keeps its vertices' storage for reuse.
+void reset_keeping_capacity(Path& path);
 
 }  // namespace gdmlt

@@ -5,13 +5,28 @@
 
 namespace gdmlt {
 
+void reset_keeping_capacity(Path& path) {
+    std::vector<PathVertex> vertices = std::move(path.vertices);
+    vertices.clear();
+    path = Path{};
+    path.vertices = std::move(vertices);
+}
+
 Path sample_camera_path(const Scene& scene, const Vec2f& film_position, SampleStream& stream,
                         const PathSamplerSettings& settings, PathCounters& counters) {
     Path path;
-    // One allocation per path instead of a growing vector's four or five (GDMLT samples a
-    // path and shifts it four times per proposal; the allocator was 10% of its time). Capped:
-    // a max_depth of thousands must not make every path allocate (and map) that many vertices
-    // of ~300 bytes; the rare longer path grows as before.
+    sample_camera_path(scene, film_position, stream, settings, counters, path);
+    return path;
+}
+
+void sample_camera_path(const Scene& scene, const Vec2f& film_position, SampleStream& stream,
+                        const PathSamplerSettings& settings, PathCounters& counters, Path& path) {
+    reset_keeping_capacity(path);
+    // At most one allocation per path instead of a growing vector's four or five (GDMLT
+    // samples a path and shifts it four times per proposal; the allocator was 10% of its
+    // time), none when `path` is reused. Capped: a max_depth of thousands must not make every
+    // path allocate (and map) that many vertices of ~300 bytes; the rare longer path grows as
+    // before.
     constexpr int kReservedVertices = 16;
     path.vertices.reserve(static_cast<std::size_t>(
         settings.max_depth > 0 ? std::min(settings.max_depth, kReservedVertices)
@@ -76,7 +91,6 @@ Path sample_camera_path(const Scene& scene, const Vec2f& film_position, SampleSt
         if (!v.continued) break;
         ray = spawn_ray(si.p, si.n_geometric, v.wi_world);
     }
-    return path;
 }
 
 }  // namespace gdmlt
