@@ -77,6 +77,98 @@ TEST(ShiftMapping, ShiftingToANeighbourAndBackReturnsTheBasePathThroughAGlassSph
     }
 }
 
+/// Everything of two paths a shift or an estimator reads, compared exactly.
+void expect_same_path(const Path& a, const Path& b, const std::string& what) {
+    EXPECT_EQ(a.film_position, b.film_position) << what;
+    EXPECT_EQ(a.camera_position, b.camera_position) << what;
+    EXPECT_EQ(a.escaped, b.escaped) << what;
+    EXPECT_EQ(a.escape_direction, b.escape_direction) << what;
+    EXPECT_EQ(a.replayable, b.replayable) << what;
+    ASSERT_EQ(a.vertices.size(), b.vertices.size()) << what;
+    for (std::size_t k = 0; k < a.vertices.size(); ++k) {
+        const PathVertex &u = a.vertices[k], &v = b.vertices[k];
+        EXPECT_EQ(u.si.p, v.si.p) << what << " vertex " << k;
+        EXPECT_EQ(u.continued, v.continued) << what << " vertex " << k;
+        EXPECT_EQ(u.wi_world, v.wi_world) << what << " vertex " << k;
+        EXPECT_TRUE((u.f == v.f).all()) << what << " vertex " << k;
+        EXPECT_EQ(u.pdf, v.pdf) << what << " vertex " << k;
+        EXPECT_EQ(u.light_visible, v.light_visible) << what << " vertex " << k;
+        EXPECT_EQ(u.log_light_jacobian, v.log_light_jacobian) << what << " vertex " << k;
+    }
+}
+
+void expect_same_terms(const std::vector<Contribution>& a, const std::vector<Contribution>& b,
+                       const std::string& what) {
+    ASSERT_EQ(a.size(), b.size()) << what;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        EXPECT_EQ(a[i].kind, b[i].kind) << what << " term " << i;
+        EXPECT_EQ(a[i].vertex, b[i].vertex) << what << " term " << i;
+        EXPECT_TRUE((a[i].f == b[i].f).all()) << what << " term " << i;
+        EXPECT_EQ(a[i].pdf, b[i].pdf) << what << " term " << i;
+        EXPECT_EQ(a[i].pdf_other, b[i].pdf_other) << what << " term " << i;
+        EXPECT_EQ(a[i].log_jacobian, b[i].log_jacobian) << what << " term " << i;
+    }
+}
+
+TEST(ShiftMapping, ReusedStorageGivesWhatFreshStorageGives) {
+    // GDPT and GDMLT sample, shift and list terms into storage reused from the previous
+    // proposal (no allocation per proposal). Whatever the previous path was (longer, escaped,
+    // reconnected, a manifold walk, a failed shift), the result must be that of fresh storage.
+    // Seed 23, 400 base paths (max depth 8) in the glass-sphere box, each shifted by four
+    // offsets, one after the other into the same objects.
+    const Scene scene = test::scene_from_xml(test::cornell_box_xml(32, true));
+    PathSamplerSettings settings;
+    settings.max_depth = 8;
+    PathCounters counters;
+    ShiftCounters shifts;
+    Path reused_base;
+    ShiftResult reused_shift;
+    std::vector<Contribution> reused_terms;
+    const Vec2f offsets[] = {{1.f, 0.f}, {0.f, -1.f}, {-2.f, 1.f}, {0.f, 1.f}};
+    int escaped = 0, reconnected = 0, failed = 0, ok = 0;
+    for (std::uint64_t t = 0; t < 400; ++t) {
+        const Vec2f film_position(1.f + 30.f * static_cast<float>((t * 37) % 101) / 101.f,
+                                  1.f + 30.f * static_cast<float>((t * 59) % 103) / 103.f);
+        IndependentStream fresh_stream(derive_stream(23, t)), reused_stream(derive_stream(23, t));
+        const Path base =
+            sample_camera_path(scene, film_position, fresh_stream, settings, counters);
+        sample_camera_path(scene, film_position, reused_stream, settings, counters, reused_base);
+        expect_same_path(reused_base, base, "base " + std::to_string(t));
+        escaped += base.escaped;
+        const int n = static_cast<int>(base.vertices.size());
+        path_contributions(scene, reused_base, {}, n, false, reused_terms);
+        expect_same_terms(reused_terms, path_contributions(scene, base, {}, n, false),
+                          "base terms " + std::to_string(t));
+        for (const Vec2f& offset : offsets) {
+            const std::string what = "path " + std::to_string(t) + " offset (" +
+                                     std::to_string(offset.x()) + ", " +
+                                     std::to_string(offset.y()) + ")";
+            const ShiftResult fresh = shift_path(scene, base, offset, ShiftKind::Auto, shifts);
+            shift_path(scene, reused_base, offset, ShiftKind::Auto, shifts, reused_shift);
+            EXPECT_EQ(reused_shift.status, fresh.status) << what;
+            EXPECT_EQ(reused_shift.valid_vertices, fresh.valid_vertices) << what;
+            EXPECT_EQ(reused_shift.reconnected_at, fresh.reconnected_at) << what;
+            EXPECT_EQ(reused_shift.manifold_chain_at, fresh.manifold_chain_at) << what;
+            EXPECT_EQ(reused_shift.log_jacobian, fresh.log_jacobian) << what;
+            expect_same_path(reused_shift.offset, fresh.offset, what);
+            path_contributions(scene, reused_shift.offset, reused_shift.log_jacobian,
+                               reused_shift.valid_vertices, false, reused_terms);
+            expect_same_terms(reused_terms,
+                              path_contributions(scene, fresh.offset, fresh.log_jacobian,
+                                                 fresh.valid_vertices, false),
+                              what + " terms");
+            reconnected += fresh.reconnected_at >= 0;
+            (fresh.status == ShiftStatus::Ok ? ok : failed) += 1;
+        }
+    }
+    // The sequence must really alternate between the kinds of result that leave different
+    // state behind, or reuse would go untested.
+    EXPECT_GT(escaped, 0);
+    EXPECT_GT(reconnected, 0);
+    EXPECT_GT(failed, 0);
+    EXPECT_GT(ok, 0);
+}
+
 /// |det d(w_offset)/d(w_base)| of the reconnection through the surface point hit by w_base,
 /// by central differences in an orthonormal tangent basis of each direction.
 double reconnection_jacobian_fd(const Scene& scene, const Vec3f& x, const Vec3f& n_x,
