@@ -122,26 +122,39 @@ bool Accelerator::occluded(const Ray& ray) const {
     return r.tfar < 0.f;
 }
 
+namespace {
+
+/// Fills the first rays.size() lanes of `packet` from `rays` and marks them valid; the other
+/// lanes repeat the last ray (so that they hold finite numbers) and are masked off.
+void fill_packet(std::span<const Ray> rays, int (&valid)[Accelerator::kPacketSize],
+                 RTCRay16& packet) {
+    const int count = static_cast<int>(rays.size());
+    for (int i = 0; i < Accelerator::kPacketSize; ++i) {
+        valid[i] = i < count ? -1 : 0;
+        const Ray& ray = rays[static_cast<std::size_t>(std::min(i, count - 1))];
+        packet.org_x[i] = ray.origin.x();
+        packet.org_y[i] = ray.origin.y();
+        packet.org_z[i] = ray.origin.z();
+        packet.dir_x[i] = ray.direction.x();
+        packet.dir_y[i] = ray.direction.y();
+        packet.dir_z[i] = ray.direction.z();
+        packet.tnear[i] = 0.f;
+        packet.tfar[i] = ray.t_max;
+        packet.mask[i] = ~0u;
+        packet.flags[i] = 0;
+        packet.time[i] = 0.f;
+    }
+}
+
+}  // namespace
+
 void Accelerator::intersect_packet(std::span<const Ray> rays, std::span<RayHit> hits) const {
     const int count = static_cast<int>(rays.size());
     if (count == 0) return;
-    // Lanes past `count` are masked off (valid = 0) and never read.
     alignas(64) int valid[kPacketSize];
     alignas(64) RTCRayHit16 packet;
+    fill_packet(rays, valid, packet.ray);
     for (int i = 0; i < kPacketSize; ++i) {
-        valid[i] = i < count ? -1 : 0;
-        const Ray& ray = rays[static_cast<std::size_t>(std::min(i, count - 1))];
-        packet.ray.org_x[i] = ray.origin.x();
-        packet.ray.org_y[i] = ray.origin.y();
-        packet.ray.org_z[i] = ray.origin.z();
-        packet.ray.dir_x[i] = ray.direction.x();
-        packet.ray.dir_y[i] = ray.direction.y();
-        packet.ray.dir_z[i] = ray.direction.z();
-        packet.ray.tnear[i] = 0.f;
-        packet.ray.tfar[i] = ray.t_max;
-        packet.ray.mask[i] = ~0u;
-        packet.ray.flags[i] = 0;
-        packet.ray.time[i] = 0.f;
         packet.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
         packet.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
     }
@@ -164,21 +177,7 @@ void Accelerator::occluded_packet(std::span<const Ray> rays, std::span<bool> occ
     if (count == 0) return;
     alignas(64) int valid[kPacketSize];
     alignas(64) RTCRay16 packet;
-    for (int i = 0; i < kPacketSize; ++i) {
-        valid[i] = i < count ? -1 : 0;
-        const Ray& ray = rays[static_cast<std::size_t>(std::min(i, count - 1))];
-        packet.org_x[i] = ray.origin.x();
-        packet.org_y[i] = ray.origin.y();
-        packet.org_z[i] = ray.origin.z();
-        packet.dir_x[i] = ray.direction.x();
-        packet.dir_y[i] = ray.direction.y();
-        packet.dir_z[i] = ray.direction.z();
-        packet.tnear[i] = 0.f;
-        packet.tfar[i] = ray.t_max;
-        packet.mask[i] = ~0u;
-        packet.flags[i] = 0;
-        packet.time[i] = 0.f;
-    }
+    fill_packet(rays, valid, packet);
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     rtcOccluded16(valid, impl_->scene, &context, &packet);
