@@ -171,7 +171,12 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
             // may straddle two batches; the film adds them in sample order all the same).
             for (int y = tile.y0; y < tile.y1; ++y)
                 for (int x = tile.x0; x < tile.x1; ++x) {
-                    if (cancel && cancel->load(std::memory_order_relaxed)) return false;
+                    if (cancel && cancel->load(std::memory_order_relaxed)) {
+                        // The unfinished batch is dropped (its pixels keep the samples already
+                        // added; the film counts per pixel), not left for the next tile.
+                        wavefront.lanes.clear();
+                        return false;
+                    }
                     for (int s = tile.first_sample; s < tile.first_sample + tile.sample_count;
                          ++s) {
                         PixelSample ps = pixel_sample(film, passes.seed, x, y, s);
