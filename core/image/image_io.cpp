@@ -150,11 +150,18 @@ void check_output_path(const std::string& path, const std::string& what) {
     if (fs::exists(status) && !fs::is_regular_file(fs::status(target, ec)))
         throw OutputError(what + " '" + path +
                           "' exists and is not a regular file: it is never replaced");
-    // The directory that will hold it, or its nearest existing ancestor (created on write).
+    // The directory that will hold it, or its nearest existing ancestor (created on write). A
+    // relative path's last ancestor is the working directory: `out/x.exr` with no `out` yet
+    // checks ".", not "out".
     fs::path directory = target.parent_path().empty() ? fs::path(".") : target.parent_path();
-    while (!fs::exists(directory, ec) && directory.has_parent_path() &&
-           directory.parent_path() != directory)
+    while (!fs::exists(directory, ec)) {
+        if (!directory.has_parent_path()) {
+            directory = directory.is_relative() ? fs::path(".") : directory;
+            break;
+        }
+        if (directory.parent_path() == directory) break;
         directory = directory.parent_path();
+    }
     if (!fs::is_directory(directory, ec))
         throw OutputError(what + " '" + path + "': '" + directory.string() +
                           "' is not a directory");

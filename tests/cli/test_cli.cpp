@@ -93,6 +93,17 @@ TEST_F(Cli, RenderWritesTheExrThePngAndTheStatistics) {
     EXPECT_GT(sum, 0.0);
 }
 
+TEST_F(Cli, RenderCreatesMissingOutputDirectoriesOfARelativePath) {
+    // The README's first command writes `out/cbox.exr` from a fresh clone, where `out` does not
+    // exist yet: the output check must look at the working directory, and the write create
+    // `out` (and deeper levels).
+    for (const std::string target : {"out/x.exr", "out2/deeper/x.exr"}) {
+        const Outcome run = run_gdmlt(dir_, "render box.xml --spp 1 -t 2 -q -o " + target);
+        ASSERT_EQ(run.exit_code, 0) << target << ": " << run.output;
+        EXPECT_TRUE(fs::is_regular_file(dir_ / target)) << target;
+    }
+}
+
 /// The text of a file in the test's directory.
 std::string read_text(const fs::path& path) {
     std::ifstream in(path);
