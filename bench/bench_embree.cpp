@@ -1,10 +1,15 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Raw Embree on our scenes: the ray rate the renderer could reach if it did nothing but trace
-// (issue "throughput": the path tracer's rays/s is stated as a fraction of it). Each benchmark
-// iteration is one query of a precomputed ray through Accelerator (a struct copy around
-// rtcIntersect1 / rtcOccluded1, the calls the renderer makes), so items_per_second is rays per
-// second; run with --benchmark_filter and compare at the renderer's thread count (the `/threads:2`
-// rows are two threads querying the same BVH, the rate summed over both).
+// (issue "throughput": the path tracer's rays/s is stated as a fraction of it). Two query forms,
+// both through Accelerator and both the renderer's own calls:
+//   BM_Embree/KIND         - one precomputed ray per iteration (rtcIntersect1 / rtcOccluded1, as
+//                            the shifts, PSSMLT and BDPT trace);
+//   BM_Embree_packet/KIND  - 16 consecutive precomputed rays per iteration (rtcIntersect16 /
+//                            rtcOccluded16, as the path tracer's wavefront traces; the rays of
+//                            one packet are as unrelated as a wavefront's).
+// items_per_second is rays per second either way; run with --benchmark_filter and compare at the
+// renderer's thread count (the `/threads:2` rows are two threads querying the same BVH, the rate
+// summed over both).
 //
 // Workload (built once per process, fixed seed, untimed), in the proportions of a path tracer:
 //   camera    - camera rays through uniformly random film positions (coherent-ish);
@@ -15,8 +20,10 @@
 // Scene: GDMLT_BENCH_SCENE / GDMLT_BENCH_DEFINES (bench/bench_scene.h), default scenes/cbox.xml.
 #include <benchmark/benchmark.h>
 
+#include <array>
 #include <exception>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -115,14 +122,58 @@ void BM_Embree(benchmark::State& state, Kind kind) {
                            benchmark::Counter::kAvgThreads);
 }
 
+void BM_Embree_packet(benchmark::State& state, Kind kind) {
+    const Workload& w = workload();
+    if (!w.error.empty()) {
+        state.SkipWithError(w.error.c_str());
+        return;
+    }
+    const std::vector<Ray>& rays = kind == Kind::Camera   ? w.camera
+                                   : kind == Kind::Bounce ? w.bounce
+                                                          : w.shadow;
+    constexpr std::size_t kPacket = Accelerator::kPacketSize;
+    const std::size_t packets = rays.size() / kPacket;
+    if (packets == 0) {
+        state.SkipWithError("fewer rays than one packet");
+        return;
+    }
+    std::size_t p = packets / 2 * static_cast<std::size_t>(state.thread_index()) % packets;
+    std::array<RayHit, kPacket> hits;
+    std::array<bool, kPacket> blocked;
+    std::int64_t hit_count = 0;
+    for (auto _ : state) {
+        const std::span<const Ray> packet(rays.data() + p * kPacket, kPacket);
+        if (kind == Kind::Shadow) {
+            w.accelerator->occluded_packet(packet, blocked);
+            for (const bool b : blocked) hit_count += b ? 1 : 0;
+        } else {
+            w.accelerator->intersect_packet(packet, hits);
+            for (const RayHit& h : hits) hit_count += h.valid() ? 1 : 0;
+        }
+        if (++p == packets) p = 0;
+    }
+    benchmark::DoNotOptimize(hit_count);
+    const auto rays_traced = state.iterations() * static_cast<std::int64_t>(kPacket);
+    state.SetItemsProcessed(rays_traced);
+    state.counters["hit_rate"] = benchmark::Counter(
+        static_cast<double>(hit_count) / static_cast<double>(rays_traced),
+        benchmark::Counter::kAvgThreads);
+}
+
 [[maybe_unused]] const bool kRegistered = [] {
     const std::pair<const char*, Kind> kinds[] = {
         {"camera", Kind::Camera}, {"bounce", Kind::Bounce}, {"shadow", Kind::Shadow}};
-    for (const auto& [name, kind] : kinds)
+    for (const auto& [name, kind] : kinds) {
         benchmark::RegisterBenchmark((std::string("BM_Embree/") + name).c_str(), BM_Embree, kind)
             ->Threads(1)
             ->Threads(2)
             ->UseRealTime();
+        benchmark::RegisterBenchmark((std::string("BM_Embree_packet/") + name).c_str(),
+                                     BM_Embree_packet, kind)
+            ->Threads(1)
+            ->Threads(2)
+            ->UseRealTime();
+    }
     return true;
 }();
 

@@ -41,10 +41,13 @@ Raw Embree
 ----------
 `bench_embree` (Google Benchmark, built beside gdmlt) traces camera, bounce (cosine about the
 normal) and shadow rays precomputed on the same scene and resolution through the same Embree
-calls as the renderer, at the same thread count, and gives rays/s per kind. The path tracer's
-rays of each run, at those rates, would take T_raw seconds; the line "path tracer at X of raw
-Embree" gives T_raw / render_s (median over runs): the share of the render an Embree-only
-renderer would still need, i.e. our rays/s over raw Embree's for the same ray mix.
+calls as the renderer, at the same thread count, and gives rays/s per kind, for single rays
+(rtcIntersect1/rtcOccluded1, BM_Embree) and for packets of 16 (rtcIntersect16/rtcOccluded16,
+BM_Embree_packet, the path tracer's wavefront's calls). The path tracer's rays of each run, at
+those rates, would take T_raw seconds; the line "path tracer at X of raw Embree" gives
+T_raw / render_s (median over runs) at the single-ray rates: the share of the render an
+Embree-only renderer would still need, i.e. our rays/s over raw Embree's for the same ray mix.
+The same share at the packet rates follows it (lower where packets are faster).
 
 Mitsuba
 -------
@@ -247,13 +250,14 @@ def raw_embree(args) -> dict:
                          capture_output=True, text=True, env=env)
     if out.returncode != 0:
         return {"error": out.stderr.strip()[-300:]}
-    rates = {}
+    rates, packet_rates = {}, {}
     for b in json.loads(out.stdout)["benchmarks"]:
-        kind = b["name"].split("/")[1]
-        rates[kind] = b["items_per_second"]
-    if set(rates) != {"camera", "bounce", "shadow"}:
-        return {"error": f"unexpected benchmarks {sorted(rates)}"}
-    return {"rays_per_s": rates}
+        form, kind = b["name"].split("/")[:2]
+        (packet_rates if form == "BM_Embree_packet" else rates)[kind] = b["items_per_second"]
+    kinds = {"camera", "bounce", "shadow"}
+    if set(rates) != kinds or set(packet_rates) != kinds:
+        return {"error": f"unexpected benchmarks {sorted(rates)} {sorted(packet_rates)}"}
+    return {"rays_per_s": rates, "packet_rays_per_s": packet_rates}
 
 
 def summary(values: list[float]) -> str:
@@ -342,13 +346,21 @@ def main() -> int:
         if "error" in raw:
             print(f"raw Embree: not measured ({raw['error']})")
         else:
-            rates = raw["rays_per_s"]
-            shares = [sum(s["rays"][k] / rates[k] for k in rates) / s["render_s"] for s in all_stats]
+            def shares_at(rates: dict) -> list[float]:
+                return [sum(s["rays"][k] / rates[k] for k in rates) / s["render_s"]
+                        for s in all_stats]
+
+            rates, packet_rates = raw["rays_per_s"], raw["packet_rays_per_s"]
+            shares, packet_shares = shares_at(rates), shares_at(packet_rates)
             raw["path_share_of_raw"] = shares
-            print(f"raw Embree (bench_embree, {args.threads} threads): " +
-                  ", ".join(f"{k} {v / 1e6:.2f}" for k, v in rates.items()) + " M rays/s")
+            raw["path_share_of_raw_packets"] = packet_shares
+            for label, r in (("single rays", rates), ("packets of 16", packet_rates)):
+                print(f"raw Embree (bench_embree, {args.threads} threads, {label}): " +
+                      ", ".join(f"{k} {v / 1e6:.2f}" for k, v in r.items()) + " M rays/s")
             print(f"path tracer at {statistics.median(shares):.1%} of raw Embree (its rays at raw "
                   f"Embree's rates / its render time; per run {summary(shares)})")
+            print(f"path tracer at {statistics.median(packet_shares):.1%} of raw Embree's packet "
+                  f"rates (per run {summary(packet_shares)})")
 
         methods = {"both": ["callgrind", "perf"], "none": []}.get(args.embree_fraction,
                                                                    [args.embree_fraction])

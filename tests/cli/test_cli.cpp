@@ -229,6 +229,7 @@ TEST_F(Cli, ARenderThatCannotFitIntoMemoryIsRefusedBeforeItStarts) {
 #endif
 #endif
 
+#if !defined(GDMLT_TEST_UNDER_ASAN)
 /// Runs the binary with `args` (split at spaces) in `dir` and returns its peak resident memory in
 /// bytes (wait4's per-child rusage), or -1 if it failed.
 double peak_memory_of_render(const fs::path& dir, const std::string& args) {
@@ -251,6 +252,7 @@ double peak_memory_of_render(const fs::path& dir, const std::string& args) {
         return -1.0;
     return static_cast<double>(usage.ru_maxrss) * 1024.0;  // Linux: kilobytes
 }
+#endif
 
 TEST_F(Cli, TheMemoryEstimateIsAtLeastWhatEachIntegratorAllocatesPerPixel) {
 #if defined(GDMLT_TEST_UNDER_ASAN)
