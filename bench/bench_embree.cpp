@@ -155,9 +155,9 @@ void BM_Embree_packet(benchmark::State& state, Kind kind) {
     benchmark::DoNotOptimize(hit_count);
     const auto rays_traced = state.iterations() * static_cast<std::int64_t>(kPacket);
     state.SetItemsProcessed(rays_traced);
-    state.counters["hit_rate"] = benchmark::Counter(
-        static_cast<double>(hit_count) / static_cast<double>(rays_traced),
-        benchmark::Counter::kAvgThreads);
+    state.counters["hit_rate"] =
+        benchmark::Counter(static_cast<double>(hit_count) / static_cast<double>(rays_traced),
+                           benchmark::Counter::kAvgThreads);
 }
 
 [[maybe_unused]] const bool kRegistered = [] {
