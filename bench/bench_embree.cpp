@@ -93,24 +93,30 @@ const Workload& workload() {
 
 enum class Kind { Camera, Bounce, Shadow };
 
-void BM_Embree(benchmark::State& state, Kind kind) {
+/// The workload's rays of `kind`, or nullptr (and the benchmark skipped) if it failed to build.
+const std::vector<Ray>* rays_of(benchmark::State& state, Kind kind) {
     const Workload& w = workload();
     if (!w.error.empty()) {
         state.SkipWithError(w.error.c_str());
-        return;
+        return nullptr;
     }
-    const std::vector<Ray>& rays = kind == Kind::Camera   ? w.camera
-                                   : kind == Kind::Bounce ? w.bounce
-                                                          : w.shadow;
+    return kind == Kind::Camera ? &w.camera : kind == Kind::Bounce ? &w.bounce : &w.shadow;
+}
+
+void BM_Embree(benchmark::State& state, Kind kind) {
+    const std::vector<Ray>* kind_rays = rays_of(state, kind);
+    if (!kind_rays) return;
+    const std::vector<Ray>& rays = *kind_rays;
+    const Accelerator& accelerator = *workload().accelerator;
     // Threads start at different places so that they do not trace the same ray at once.
     std::size_t i =
         (rays.size() / 2) * static_cast<std::size_t>(state.thread_index()) % rays.size();
     std::int64_t hits = 0;
     for (auto _ : state) {
         if (kind == Kind::Shadow) {
-            hits += w.accelerator->occluded(rays[i]) ? 1 : 0;
+            hits += accelerator.occluded(rays[i]) ? 1 : 0;
         } else {
-            const RayHit hit = w.accelerator->intersect(rays[i]);
+            const RayHit hit = accelerator.intersect(rays[i]);
             hits += hit.valid() ? 1 : 0;
         }
         if (++i == rays.size()) i = 0;
@@ -123,14 +129,10 @@ void BM_Embree(benchmark::State& state, Kind kind) {
 }
 
 void BM_Embree_packet(benchmark::State& state, Kind kind) {
-    const Workload& w = workload();
-    if (!w.error.empty()) {
-        state.SkipWithError(w.error.c_str());
-        return;
-    }
-    const std::vector<Ray>& rays = kind == Kind::Camera   ? w.camera
-                                   : kind == Kind::Bounce ? w.bounce
-                                                          : w.shadow;
+    const std::vector<Ray>* kind_rays = rays_of(state, kind);
+    if (!kind_rays) return;
+    const std::vector<Ray>& rays = *kind_rays;
+    const Accelerator& accelerator = *workload().accelerator;
     constexpr std::size_t kPacket = Accelerator::kPacketSize;
     const std::size_t packets = rays.size() / kPacket;
     if (packets == 0) {
@@ -144,10 +146,10 @@ void BM_Embree_packet(benchmark::State& state, Kind kind) {
     for (auto _ : state) {
         const std::span<const Ray> packet(rays.data() + p * kPacket, kPacket);
         if (kind == Kind::Shadow) {
-            w.accelerator->occluded_packet(packet, blocked);
+            accelerator.occluded_packet(packet, blocked);
             for (const bool b : blocked) hit_count += b ? 1 : 0;
         } else {
-            w.accelerator->intersect_packet(packet, hits);
+            accelerator.intersect_packet(packet, hits);
             for (const RayHit& h : hits) hit_count += h.valid() ? 1 : 0;
         }
         if (++p == packets) p = 0;
