@@ -292,8 +292,8 @@ ShiftStatus manifold_shift(const Scene& scene, const Path& base, std::size_t k, 
         log_jacobian.push_back(0.0);
     }
     // From x_m on the paths coincide; x_m's continuation sees a new incoming direction.
-    // (Copied in place: a vertex is ~300 bytes, and these copies were 1.7% of GDMLT's
-    // instructions on cbox_glass_sphere when they went through a temporary.)
+    // (Appended in place: a vertex is ~300 bytes, and going through a temporary copied each
+    // twice, 1% of GDMLT's instructions on cbox_glass_sphere.)
     const Vec3f last_walked = y.vertices.back().si.p;
     for (std::size_t j = m; j < n; ++j) {
         PathVertex& shared = y.vertices.emplace_back(base.vertices[j]);
