@@ -150,24 +150,18 @@ void check_output_path(const std::string& path, const std::string& what) {
     if (fs::exists(status) && !fs::is_regular_file(fs::status(target, ec)))
         throw OutputError(what + " '" + path +
                           "' exists and is not a regular file: it is never replaced");
-    // The directory that will hold it, or its nearest existing ancestor (created on write). A
-    // relative path's last ancestor is the working directory: `out/x.exr` with no `out` yet
-    // checks ".", not "out".
-    fs::path directory = target.parent_path().empty() ? fs::path(".") : target.parent_path();
-    while (!fs::exists(directory, ec)) {
-        if (!directory.has_parent_path()) {
-            directory = directory.is_relative() ? fs::path(".") : directory;
-            break;
-        }
-        if (directory.parent_path() == directory) break;
+    // The directory that will hold it, or its nearest existing ancestor (created on write).
+    // Relative paths are walked from "./", so that their last ancestor is the working directory
+    // (`out/x.exr` with no `out` yet checks "."); "." / an absolute path is that path.
+    fs::path directory = fs::path(".") / target.parent_path();
+    while (!fs::exists(directory, ec) && directory.has_parent_path() &&
+           directory.parent_path() != directory)
         directory = directory.parent_path();
-    }
+    const std::string shown = directory.lexically_normal().string();
     if (!fs::is_directory(directory, ec))
-        throw OutputError(what + " '" + path + "': '" + directory.string() +
-                          "' is not a directory");
+        throw OutputError(what + " '" + path + "': '" + shown + "' is not a directory");
     if (::access(directory.c_str(), W_OK | X_OK) != 0)
-        throw OutputError(what + " '" + path + "': directory '" + directory.string() +
-                          "' is not writable");
+        throw OutputError(what + " '" + path + "': directory '" + shown + "' is not writable");
 }
 
 bool same_file(const std::string& a, const std::string& b) {
