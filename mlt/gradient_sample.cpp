@@ -243,22 +243,33 @@ GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
             const bool matched = o < offset_terms.size() && offset_terms[o].vertex == c.vertex &&
                                  offset_terms[o].kind == c.kind;
             if (!(c.pdf > 0.0) || is_very_direct(c)) continue;
-            // Both directions of the shift are strategies for the same pair of paths, and so
-            // are BSDF sampling and NEE: the power heuristic over all four (Kettunen et al.
-            // 2015, sec. 4.2) weights this one. The offset's pdfs are converted to the base's
-            // measure by the Jacobian.
-            double a2 = c.pdf * c.pdf, b2 = c.pdf_other * c.pdf_other, shifted2 = 0.0;
+            // The pair (x, y = T_s(x)) of strategy s (BSDF sampling or NEE) is produced by two
+            // techniques: s from pixel i, and s from pixel j shifted back. Each path keeps its own
+            // MIS weight between BSDF sampling and NEE, w_s(x) and w_s(y) (the path tracer's),
+            // and the two directions share the power heuristic of p_s(x) and p_s(y) |T_s'|:
+            //     D = v_s(x) [w_s(y) f(y) |T_s'| - w_s(x) f(x)] / p_s(x),
+            //     v_s(x) = p_s(x)^2 / (p_s(x)^2 + (p_s(y) |T_s'|)^2).
+            // Unbiased whatever the shifts of the two strategies do: per strategy the two
+            // directions' weights sum to one over the pair. (A joint power heuristic over all
+            // four techniques, as gradient-mts's G-PT weighs them, sums to one only where both
+            // strategies shift x to the same y; where they do not, e.g. a glossy vertex lit by
+            // an environment map, whose NEE offset keeps the light direction while BSDF
+            // sampling's follows the half vector, it overestimated differences 1.4x.)
+            const double a2 = c.pdf * c.pdf, b2 = c.pdf_other * c.pdf_other;
+            const double w_base = a2 / (a2 + b2);
+            double shifted2 = 0.0;
             Rgb f_offset = Rgb::Zero();
             if (matched) {
                 const manifold::Contribution& t = offset_terms[o];
                 const double jacobian = std::exp(t.log_jacobian);
-                if (std::isfinite(jacobian)) {
-                    shifted2 = (t.pdf * t.pdf + t.pdf_other * t.pdf_other) * jacobian * jacobian;
-                    f_offset = t.f * static_cast<float>(jacobian);
+                const double t2 = t.pdf * t.pdf, t_other2 = t.pdf_other * t.pdf_other;
+                if (std::isfinite(jacobian) && t2 > 0.0) {
+                    shifted2 = t2 * jacobian * jacobian;
+                    f_offset = t.f * static_cast<float>(jacobian * t2 / (t2 + t_other2));
                 }
             }
-            const auto weight_over_pdf = static_cast<float>(c.pdf / (a2 + b2 + shifted2));
-            estimate.base += c.f * weight_over_pdf;
+            const auto weight_over_pdf = static_cast<float>(c.pdf / (a2 + shifted2));
+            estimate.base += c.f * static_cast<float>(w_base) * weight_over_pdf;
             estimate.offset += f_offset * weight_over_pdf;
         }
     }

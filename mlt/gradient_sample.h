@@ -38,8 +38,9 @@ struct GradientSample {
 };
 
 /// The two halves of one link's difference D = offset - base: the base path's terms and the
-/// offset path's (Jacobian included), each times the same MIS weight over both shift
-/// directions (and both techniques, BSDF sampling and NEE). `base` is also pixel i's share of
+/// offset path's (Jacobian included), per technique (BSDF sampling, NEE) each with its own
+/// path's weight between the techniques, times the technique's weight between the two shift
+/// directions (mlt/gradient_sample.cpp, sample_gradients). `base` is also pixel i's share of
 /// its primal for this pair (the pair's weights for a path through i sum to one over "based in
 /// i" and "shifted from j"), and `offset` is pixel j's share estimated from i: G-PT's "MIS
 /// between pixels" primal, (1 / n_i) sum over i's n_i links of both (Kettunen et al. 2015).
