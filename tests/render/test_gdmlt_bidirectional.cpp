@@ -7,9 +7,11 @@
 
 #include <cmath>
 #include <functional>
+#include <string>
 
 #include "core/image/neighbour_set.h"
 #include "core/render/render_path.h"
+#include "core/scene/scene_desc.h"
 #include "mlt/gdmlt.h"
 #include "mlt/gradient_sample.h"
 #include "reconstruct/reconstruct.h"
@@ -79,6 +81,17 @@ TEST(BidirectionalGradients, DifferencesMatchBdptWithTheLightSealedInGlass) {
         scene,
         {{7, 9, Vec2i(1, 0)}, {4, 12, Vec2i(0, 1)}, {9, 5, Vec2i(0, 1)}, {11, 13, Vec2i(1, 1)}},
         20000);
+}
+
+TEST(BidirectionalGradients, DifferencesMatchBdptInAGlossyHighlightOfAnEnvironment) {
+    // scenes/materials_envmap.xml at 128x128: the sun's highlight on the rough anisotropic gold
+    // sphere, where NEE (s = 1) and BSDF sampling (s = 0) shift a path to different offsets
+    // (the case that biased the unidirectional estimator's joint weights 1.5x,
+    // GradientEstimator.DifferenceAcrossAGlossyHighlightOfAnEnvironmentMatchesThePathTracer).
+    // The light subpaths start at infinity, so light tracing is not shifted here.
+    const Scene scene = build_scene(
+        parse_scene_file(std::string(GDMLT_SOURCE_DIR) + "/scenes/materials_envmap.xml"));
+    check_bidirectional_differences(scene, {{108, 58, Vec2i(1, 0)}, {109, 60, Vec2i(0, 1)}}, 20000);
 }
 
 /// Per sample, the shifted light tracing terms' values: per pixel (their primal) and per edge
