@@ -254,7 +254,7 @@ GradientSample sample_gradients(const Scene& scene, const Vec2f& film_position,
             // four techniques, as gradient-mts's G-PT weighs them, sums to one only where both
             // strategies shift x to the same y; where they do not, e.g. a glossy vertex lit by
             // an environment map, whose NEE offset keeps the light direction while BSDF
-            // sampling's follows the half vector, it overestimated differences 1.4x.)
+            // sampling's follows the half vector, it overestimated differences 1.4-1.5x.)
             const double a2 = c.pdf * c.pdf, b2 = c.pdf_other * c.pdf_other;
             const double w_base = a2 / (a2 + b2);
             double shifted2 = 0.0;
