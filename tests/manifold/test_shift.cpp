@@ -5,11 +5,9 @@
 
 #include <cmath>
 #include <optional>
-#include <string>
 
 #include "core/path/path.h"
 #include "core/render/render_path.h"
-#include "core/scene/scene_desc.h"
 #include "manifold/shift.h"
 #include "mlt/gdpt.h"
 #include "tests/support/chi2.h"
@@ -313,8 +311,7 @@ TEST(GradientEstimator, DifferenceAcrossAGlossyHighlightOfAnEnvironmentMatchesTh
     // 0.03 (and 3.782 +- 0.009 against 3.789 +- 0.028 at 8x the samples). GDPT over 2 x 20000
     // base samples (seed 79) against 20000 path-traced samples per pixel (seed 97), within 4
     // combined standard errors.
-    const Scene scene = build_scene(
-        parse_scene_file(std::string(GDMLT_SOURCE_DIR) + "/scenes/materials_envmap.xml"));
+    const Scene scene = test::repository_scene("materials_envmap");
     mlt::GdptSettings settings;
     settings.path.max_depth = 8;
     constexpr int kSamples = 20000, kX = 108, kY = 58;

@@ -7,11 +7,9 @@
 
 #include <cmath>
 #include <functional>
-#include <string>
 
 #include "core/image/neighbour_set.h"
 #include "core/render/render_path.h"
-#include "core/scene/scene_desc.h"
 #include "mlt/gdmlt.h"
 #include "mlt/gradient_sample.h"
 #include "reconstruct/reconstruct.h"
@@ -89,8 +87,7 @@ TEST(BidirectionalGradients, DifferencesMatchBdptInAGlossyHighlightOfAnEnvironme
     // (the case that biased the unidirectional estimator's joint weights 1.5x,
     // GradientEstimator.DifferenceAcrossAGlossyHighlightOfAnEnvironmentMatchesThePathTracer).
     // The light subpaths start at infinity, so light tracing is not shifted here.
-    const Scene scene = build_scene(
-        parse_scene_file(std::string(GDMLT_SOURCE_DIR) + "/scenes/materials_envmap.xml"));
+    const Scene scene = test::repository_scene("materials_envmap");
     check_bidirectional_differences(scene, {{108, 58, Vec2i(1, 0)}, {109, 60, Vec2i(0, 1)}}, 20000);
 }
 

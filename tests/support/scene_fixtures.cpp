@@ -16,6 +16,11 @@ Scene scene_from_xml(const std::string& body, const BuildOptions& options) {
     return build_scene(parse_scene_string(xml, "test.xml"), options);
 }
 
+Scene repository_scene(const std::string& name) {
+    return build_scene(
+        parse_scene_file(std::string(GDMLT_SOURCE_DIR) + "/scenes/" + name + ".xml"));
+}
+
 std::string sensor_xml(int resolution, float fov_deg, const std::string& origin, int spp) {
     const std::string res = std::to_string(resolution);
     return "<sensor type=\"perspective\"><float name=\"fov\" value=\"" + std::to_string(fov_deg) +

@@ -16,6 +16,9 @@ namespace gdmlt::test {
 /// Parses `<scene version="3.0.0">` + body + `</scene>` (named "test.xml" in messages).
 Scene scene_from_xml(const std::string& body, const BuildOptions& options = {});
 
+/// The repository's scenes/<name>.xml with its defaults (the tests' copy of the source tree).
+Scene repository_scene(const std::string& name);
+
 /// A sensor block: perspective camera at `origin` looking at the origin, square film.
 std::string sensor_xml(int resolution, float fov_deg, const std::string& origin, int spp = 16);
 
