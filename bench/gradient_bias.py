@@ -44,19 +44,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 import metrics  # noqa: E402
-
-SHARED_SCENES = os.path.join(ROOT, "..", "shared", "scenes")
-
-
-def resolve_scene(name):
-    """A path, or a name looked up in scenes/ and then ../shared/scenes/."""
-    if os.path.isfile(name):
-        return name
-    for folder in (os.path.join(ROOT, "scenes"), SHARED_SCENES):
-        path = os.path.join(folder, name + ".xml")
-        if os.path.isfile(path):
-            return path
-    raise SystemExit(f"scene not found: {name}")
+from equal_time import resolve_scene, scene_name  # noqa: E402
 
 
 def render(args, scene, integrator, seconds, spp, seed, out):
@@ -68,15 +56,6 @@ def render(args, scene, integrator, seconds, spp, seed, out):
 
 def rgb_mean(path, layer=""):
     return metrics.read_rgb(path, layer).mean(axis=2)
-
-
-def forward_differences(image):
-    """(dx, dy): I(x+1) - I(x) and I(y+1) - I(y), 0 on the last column / row."""
-    dx = np.zeros_like(image)
-    dy = np.zeros_like(image)
-    dx[:, :-1] = image[:, 1:] - image[:, :-1]
-    dy[:-1, :] = image[1:, :] - image[:-1, :]
-    return dx, dy
 
 
 def edge_masks(very_direct):
@@ -98,8 +77,8 @@ def block_z_scores(gdpt_exr, path_p, path_q, block):
              metrics.read_luminance(gdpt_exr, "dy_variance"))
     very_direct = rgb_mean(gdpt_exr, "very_direct") > 0.0
     masks = edge_masks(very_direct)
-    p = forward_differences(rgb_mean(path_p))
-    q = forward_differences(rgb_mean(path_q))
+    p = metrics.forward_differences(rgb_mean(path_p))
+    q = metrics.forward_differences(rgb_mean(path_q))
     height, width = very_direct.shape
     rows = []
     for y in range(0, height, block):
@@ -144,7 +123,7 @@ def main():
     failed = False
     for name in args.scenes:
         scene = resolve_scene(name)
-        stem = os.path.splitext(os.path.basename(scene))[0]
+        stem = scene_name(scene)
         gdpt_exr = os.path.join(args.out, f"{stem}_gdpt.exr")
         path_exrs = [os.path.join(args.out, f"{stem}_path{h}.exr") for h in range(2)]
         render(args, scene, "gdpt", args.gdpt_time, args.gdpt_spp, 7, gdpt_exr)

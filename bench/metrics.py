@@ -48,6 +48,16 @@ def write_rgb(path, image):
         raise RuntimeError(f"{path}: {buf.geterror()}")
 
 
+def forward_differences(image):
+    """(dx, dy) as the dx/dy layers hold them: I(x+1) - I(x) and I(y+1) - I(y), 0 on the last
+    column / row."""
+    dx = np.zeros_like(image)
+    dy = np.zeros_like(image)
+    dx[:, :-1] = image[:, 1:] - image[:, :-1]
+    dy[:-1, :] = image[1:, :] - image[:-1, :]
+    return dx, dy
+
+
 def rel_mse(image, reference):
     return float(np.mean((image - reference) ** 2 / (reference ** 2 + 0.01)))
 
