@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Path-tracer throughput: samples/s, rays/s, the share of Embree, and Mitsuba 3 for scale.
+"""Path-tracer throughput: samples/s, rays/s, the share of Embree, Mitsuba 3 for scale, and the
+MLT and gradient-domain integrators' rates against the path tracer's.
 
 A benchmark, not a test: it builds nothing and asserts nothing. It prints
 
@@ -12,7 +13,9 @@ A benchmark, not a test: it builds nothing and asserts nothing. It prints
 3. when Mitsuba 3 can be imported (by this interpreter or by --mitsuba-python), Mitsuba's
    samples/s on the same scene file with the same resolution, spp, max_depth and thread
    count, rendered in the same run and interleaved with ours (one of theirs after each of
-   ours, so that a change of machine load hits both), and the ratio gdmlt / Mitsuba.
+   ours, so that a change of machine load hits both), and the ratio gdmlt / Mitsuba;
+4. for each integrator of --integrators (default pssmlt, gdpt, gdmlt), its rate against the
+   path tracer's samples/s on the same scene (see "Other integrators' rates").
 
 Embree fraction
 ---------------
@@ -49,6 +52,34 @@ T_raw / render_s (median over runs) at the single-ray rates: the share of the re
 Embree-only renderer would still need, i.e. our rays/s over raw Embree's for the same ray mix.
 The same share at the packet rates follows it (lower where packets are faster).
 
+Other integrators' rates
+------------------------
+In each run, after the path tracer (and Mitsuba's render), each integrator of --integrators
+renders the same scene once with the same resolution, max_depth, thread count and seed, and as
+much work as the path tracer: `--spp SPP` for gdpt, `--mpp SPP` (mutations per pixel; --spp too)
+for pssmlt and gdmlt. Its rate is divided by that run's path tracer samples/s, so both were
+measured under the same machine load; the median over runs of that ratio is reported. The rates
+are these fields of the `--stats` JSON:
+
+    pssmlt  mutations_per_s = mutations / chains_s: the Markov chains only; the bootstrap that
+            estimates the normalisation b (bootstrap_s: 100000 independent path samples, at
+            least 10 per chain, whatever the image size) and a separate direct pass (direct_s,
+            off by default) are excluded;
+    gdpt    samples_per_s = samples / sampling_s (samples = pixels x spp, each a base path and
+            its shifts to the pixel's lattice neighbours): the reconstruction (reconstruct_s) is
+            excluded;
+    gdmlt   proposals_per_s = mutations / chains_s (one proposal: a base path and its shifts;
+            the same number as its mutations_per_s): the Markov chains only; the bootstrap
+            (bootstrap_s: from 100000 samples, grown up to 16x until b's relative standard
+            error is below 1%), the very direct pass (very_direct_s), a light tracing pass
+            (light_tracing_s, bidirectional only) and the reconstruction (reconstruct_s) are
+            excluded.
+
+The path tracer's samples/s is samples / render_s (its whole render loop). The excluded phases'
+times are printed beside the rates (their medians over runs); at small images or low budgets the
+bootstrap can take longer than the chains, so a rate over render_s would be far lower. For scale:
+in Mitsuba 0.6, PSSMLT ran at 0.45x its path tracer's samples/s, and gradient-mts's G-PT at 0.26x.
+
 Mitsuba
 -------
 Mitsuba runs in a child process (the interpreter given by --mitsuba-python, default this one),
@@ -62,6 +93,7 @@ until the image is evaluated, which like ours excludes scene loading.
 Example:
     /usr/bin/python3 bench/throughput.py --gdmlt build/release/gdmlt --runs 5 \\
         --mitsuba-python /tmp/mi_venv/bin/python
+    /usr/bin/python3 bench/throughput.py --integrators none      # the path tracer only
 """
 from __future__ import annotations
 
@@ -124,6 +156,33 @@ def run_gdmlt(args, out_dir: Path, run: int) -> dict:
            "-D", f"res={args.res}", "--spp", str(args.spp), "-t", str(args.threads),
            "--seed", str(run), "-q", "-o", str(out_dir / f"img_{run}.exr"),
            "--stats", str(stats_path)]
+    subprocess.run(cmd, check=True)
+    return json.loads(stats_path.read_text())
+
+
+# Per integrator of --integrators: the --stats field holding its rate, the rate's unit, the
+# phase it is measured over, and the phases outside it (reported beside it, not in it).
+OTHER_RATES = {
+    "pssmlt": {"field": "mutations_per_s", "unit": "mutations/s", "over": "chains_s",
+               "excluded": ["bootstrap_s", "direct_s"]},
+    "gdpt": {"field": "samples_per_s", "unit": "samples/s", "over": "sampling_s",
+             "excluded": ["reconstruct_s"]},
+    "gdmlt": {"field": "proposals_per_s", "unit": "proposals/s", "over": "chains_s",
+              "excluded": ["bootstrap_s", "very_direct_s", "light_tracing_s", "reconstruct_s"]},
+}
+
+
+def run_other(args, integrator: str, out_dir: Path, run: int) -> dict:
+    """One render by `integrator` with the path tracer's scene, resolution, max_depth, threads
+    and seed of run `run`, and its work: spp samples per pixel (gdpt) or as many mutations per
+    pixel (pssmlt, gdmlt). Returns the --stats JSON."""
+    stats_path = out_dir / f"stats_{integrator}_{run}.json"
+    cmd = [args.gdmlt, "render", str(args.scene), "--integrator", integrator,
+           "-D", f"max_depth={args.max_depth}", "-D", f"res={args.res}",
+           "--spp", str(args.spp), "-t", str(args.threads), "--seed", str(run), "-q",
+           "-o", str(out_dir / f"img_{integrator}_{run}.exr"), "--stats", str(stats_path)]
+    if integrator != "gdpt":
+        cmd += ["--mpp", str(args.spp)]
     subprocess.run(cmd, check=True)
     return json.loads(stats_path.read_text())
 
@@ -265,6 +324,37 @@ def summary(values: list[float]) -> str:
             f"max {max(values):.4g}, n={len(values)})")
 
 
+def other_rates(args, others: dict[str, list[dict]], ours_sps: list[float],
+                all_stats: list[dict]) -> dict:
+    """Prints, per integrator of --integrators, its rate (median over runs) and its rate over the
+    path tracer's samples/s of the same run (per run and median), and the median times of the
+    phases its rate excludes; returns all of these for the JSON."""
+    out = {}
+    path_render_s = [s["render_s"] for s in all_stats]
+    for name, runs in others.items():
+        spec = OTHER_RATES[name]
+        rates = [r[spec["field"]] for r in runs]
+        ratios = [a / b for a, b in zip(rates, ours_sps)]
+        seconds = {k: [r.get(k, 0.0) for r in runs]
+                   for k in [spec["over"], *spec["excluded"], "render_s"]}
+        print(f"{name} {spec['unit']}: {summary(rates)}; per run / path tracer samples/s: "
+              f"{summary(ratios)}")
+        excluded = [f"{k[:-2]} {statistics.median(seconds[k]):.3g} s" for k in spec["excluded"]
+                    if any(seconds[k])]
+        print(f"  {name} time (medians): {spec['over'][:-2]} "
+              f"{statistics.median(seconds[spec['over']]):.3g} s (the rate's); excluded: "
+              f"{', '.join(excluded) or 'nothing'}; render_s "
+              f"{statistics.median(seconds['render_s']):.3g} s (path tracer's "
+              f"{statistics.median(path_render_s):.3g} s)")
+        out[name] = {"field": spec["field"], "unit": spec["unit"], "over": spec["over"],
+                     "excluded": spec["excluded"], "work_per_pixel": args.spp,
+                     "work": [r["mutations"] if "mutations" in r else r["samples"] for r in runs],
+                     "rate": rates, "rate_median": statistics.median(rates),
+                     "ratio_to_path_samples_per_s": ratios,
+                     "ratio_median": statistics.median(ratios), "seconds": seconds}
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--gdmlt", default=str(REPO / "build/release/gdmlt"))
@@ -284,8 +374,13 @@ def main() -> int:
     ap.add_argument("--mitsuba-variant", default="llvm_ad_rgb")
     ap.add_argument("--bench-embree", default=None,
                     help="bench_embree executable (default: bench/ beside --gdmlt)")
+    ap.add_argument("--integrators", nargs="*", choices=[*OTHER_RATES, "none"],
+                    default=list(OTHER_RATES),
+                    help="also render with these in every run and report their rates against "
+                         "the path tracer's samples/s (none or nothing: skip)")
     ap.add_argument("--json", type=Path, help="also write all numbers here")
     args = ap.parse_args()
+    args.integrators = [i for i in dict.fromkeys(args.integrators) if i != "none"]
     args.scene = args.scene.resolve()
     if args.bench_embree is None:
         args.bench_embree = str(Path(args.gdmlt).resolve().parent / "bench" / "bench_embree")
@@ -314,6 +409,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="gdmlt_throughput_") as tmp:
         out_dir = Path(tmp)
         ours_sps, ours_rps, theirs_sps, all_stats = [], [], [], []
+        others: dict[str, list[dict]] = {name: [] for name in args.integrators}
         for run in range(args.runs):
             stats = run_gdmlt(args, out_dir, run)
             all_stats.append(stats)
@@ -326,11 +422,24 @@ def main() -> int:
                 theirs_sps.append(args.res * args.res * args.spp / seconds)
                 line += f"; Mitsuba {theirs_sps[-1] / 1e6:.3f} M samples/s"
             print(line, flush=True)
+            if args.integrators:
+                parts = []
+                for name in args.integrators:
+                    other = run_other(args, name, out_dir, run)
+                    others[name].append(other)
+                    spec = OTHER_RATES[name]
+                    rate = other[spec["field"]]
+                    parts.append(f"{name} {rate / 1e6:.3f} M {spec['unit']} "
+                                 f"({rate / stats['samples_per_s']:.2f}x path tracer)")
+                print(f"  run {run}: " + ", ".join(parts), flush=True)
         rays_per_sample = stats["rays"]["total"] / max(stats["samples"], 1)
         print(f"gdmlt samples/s: {summary(ours_sps)}")
         print(f"gdmlt rays/s:    {summary(ours_rps)}  ({rays_per_sample:.2f} rays per sample)")
         result["gdmlt"] = {"samples_per_s": ours_sps, "rays_per_s": ours_rps,
-                           "rays_per_sample": rays_per_sample}
+                           "rays_per_sample": rays_per_sample,
+                           "render_s": [s["render_s"] for s in all_stats]}
+        if args.integrators:
+            result["mlt_rates"] = other_rates(args, others, ours_sps, all_stats)
         if mitsuba:
             mitsuba.close()
             ratio = statistics.median(ours_sps) / statistics.median(theirs_sps)

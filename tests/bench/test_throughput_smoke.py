@@ -3,7 +3,10 @@
 """Smoke test of `bench/throughput.py`: two tiny path-tracer renders of cbox, no Mitsuba, no
 profiler, and raw Embree from the bench_embree built beside the binary; the JSON must hold our
 samples/s for each run, raw Embree's rates for single rays and for packets of 16 (every ray kind),
-and the path tracer's share of each, and the printed report the lines scripts read.
+and the path tracer's share of each, and the printed report the lines scripts read. With each
+path-tracer run, PSSMLT, GDPT and GDMLT render the same scene too (the script's default
+--integrators); the JSON's "mlt_rates" must hold each one's rate and its ratio to the path
+tracer's samples/s for each run and their medians, and the report their lines.
 
 A smoke test, not a benchmark: it asserts that every number was measured and is finite and
 positive, never how large it is (that depends on the machine).
@@ -20,6 +23,8 @@ import unittest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 KINDS = {"camera", "bounce", "shadow"}
+# The integrators throughput.py compares with the path tracer by default, and their rates' units.
+UNITS = {"pssmlt": "mutations/s", "gdpt": "samples/s", "gdmlt": "proposals/s"}
 
 
 def positive(x) -> bool:
@@ -27,20 +32,28 @@ def positive(x) -> bool:
 
 
 class ThroughputSmoke(unittest.TestCase):
-    def test_reports_our_rate_and_both_raw_embree_rates(self):
+    @classmethod
+    def setUpClass(cls):
+        """One run of the script (both tests read it)."""
         binary = os.environ.get("GDMLT_BINARY", os.path.join(ROOT, "build", "release", "gdmlt"))
         with tempfile.TemporaryDirectory(prefix="gdmlt_throughput_test_") as tmp:
             out_json = os.path.join(tmp, "throughput.json")
-            run = subprocess.run(
+            cls.proc = subprocess.run(
                 [sys.executable, os.path.join(ROOT, "bench", "throughput.py"), "--gdmlt", binary,
                  "--scene", os.path.join(ROOT, "scenes", "cbox.xml"), "--res", "32", "--spp", "4",
                  "--threads", "1", "--runs", "2", "--mitsuba", "off", "--embree-fraction", "none",
                  "--json", out_json],
                 capture_output=True, text=True, timeout=300)
-            self.assertEqual(run.returncode, 0, run.stdout + run.stderr)
-            with open(out_json) as f:
-                result = json.load(f)
+            cls.result = None
+            if cls.proc.returncode == 0:
+                with open(out_json) as f:
+                    cls.result = json.load(f)
 
+    def setUp(self):
+        self.assertEqual(self.proc.returncode, 0, self.proc.stdout + self.proc.stderr)
+
+    def test_reports_our_rate_and_both_raw_embree_rates(self):
+        run, result = self.proc, self.result
         ours = result["gdmlt"]
         self.assertEqual(len(ours["samples_per_s"]), 2)
         self.assertTrue(all(positive(x) for x in ours["samples_per_s"]), ours)
@@ -61,6 +74,29 @@ class ThroughputSmoke(unittest.TestCase):
                                      r"camera [\d.]+, bounce [\d.]+, shadow [\d.]+ M rays/s")
         self.assertRegex(run.stdout, r"path tracer at [\d.]+% of raw Embree \(")
         self.assertRegex(run.stdout, r"path tracer at [\d.]+% of raw Embree's packet rates")
+
+    def test_reports_mlt_and_gdpt_rates_against_the_path_tracer(self):
+        rates = self.result.get("mlt_rates")
+        self.assertIsNotNone(rates, self.result.keys())
+        self.assertEqual(set(rates), set(UNITS), rates.keys())
+        number = r"[\d.]+(?:e[+-]\d+)?"
+        per_run = []
+        for name, unit in UNITS.items():
+            r = rates[name]
+            for key in ("rate", "ratio_to_path_samples_per_s"):
+                self.assertEqual(len(r[key]), 2, (name, key))
+                self.assertTrue(all(positive(x) for x in r[key]), (name, key, r[key]))
+            for key in ("rate_median", "ratio_median"):
+                self.assertTrue(positive(r[key]), (name, key, r[key]))
+            self.assertEqual(r["unit"], unit, name)
+            self.assertRegex(self.proc.stdout,
+                             rf"\n{name} {unit}: median {number}  \(min {number}, max {number}, "
+                             rf"n=2\); per run / path tracer samples/s: median {number}  "
+                             rf"\(min {number}, max {number}, n=2\)\n")
+            self.assertRegex(self.proc.stdout, rf"\n  {name} time \(medians\): ")
+            per_run.append(rf"{name} {number} M {unit} \({number}x path tracer\)")
+        for i in range(2):
+            self.assertRegex(self.proc.stdout, rf"\n  run {i}: " + ", ".join(per_run) + "\n")
 
 
 if __name__ == "__main__":
