@@ -42,7 +42,10 @@ BsdfSample sample_model(const DiffuseBsdf& m, const Vec2f& uv, const Vec3f& wo, 
     if (cos_theta(wo) <= 0.f) return s;
     s.wi = warp::square_to_cosine_hemisphere(u);
     s.pdf_solid_angle = warp::square_to_cosine_hemisphere_pdf_solid_angle(s.wi);
-    if (!(s.pdf_solid_angle > 0.f)) return BsdfSample{};
+    if (!(s.pdf_solid_angle > 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
     s.weight = m.reflectance.eval(uv);  // (R/pi * cos) / (cos/pi)
     s.sampled_class = RoughnessClass::Diffuse;
     return s;
@@ -80,7 +83,10 @@ BsdfSample sample_model(const DielectricBsdf& m, const Vec2f& uv, const Vec3f& w
         const float scale = mode == TransportMode::Radiance ? f.eta_ti * f.eta_ti : 1.f;
         s.weight = m.specular_transmittance.eval(uv) * scale;
     }
-    if (!(s.pdf_solid_angle > 0.f)) return BsdfSample{};
+    if (!(s.pdf_solid_angle > 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
     return s;
 }
 BsdfLobes model_lobes(const DielectricBsdf&) {
@@ -108,7 +114,10 @@ BsdfSample sample_model(const ThinDielectricBsdf& m, const Vec2f& uv, const Vec3
         s.transmission = true;
         s.weight = m.specular_transmittance.eval(uv);
     }
-    if (!(s.pdf_solid_angle > 0.f)) return BsdfSample{};
+    if (!(s.pdf_solid_angle > 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
     return s;
 }
 BsdfLobes model_lobes(const ThinDielectricBsdf&) {
@@ -224,7 +233,7 @@ BsdfSample Bsdf::sample(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Ve
     if (flipped) s.wi = flip_z(s.wi);
     if (!s.valid() || !std::isfinite(s.pdf_solid_angle) || !is_finite(s.weight) ||
         !s.wi.allFinite())
-        return BsdfSample{};
+        s = BsdfSample{};
     return s;
 }
 

@@ -24,6 +24,10 @@ namespace gdmlt {
 
 enum class TransportMode { Radiance, Importance };
 
+/// A sampled direction. Functions returning one keep a single named return object (an invalid
+/// sample is `s = BsdfSample{}; return s;`, not `return BsdfSample{};`) so that it is built in
+/// the caller's storage (NRVO); a second return object costs a copy per call, and the path
+/// tracer samples a BSDF at every vertex.
 struct BsdfSample {
     Vec3f wi = Vec3f::UnitZ();
     Rgb weight = Rgb::Zero();  // eval / pdf, or the delta lobe's weight

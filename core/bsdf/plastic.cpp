@@ -205,7 +205,10 @@ BsdfSample sample_model(const PlasticBsdf& b, const Vec2f& uv, const Vec3f& wo, 
     }
     s.wi = warp::square_to_cosine_hemisphere(u);
     s.pdf_solid_angle = (1.f - p_spec) * warp::square_to_cosine_hemisphere_pdf_solid_angle(s.wi);
-    if (!(s.pdf_solid_angle > 0.f)) return BsdfSample{};
+    if (!(s.pdf_solid_angle > 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
     s.weight = eval_model(b, uv, wo, s.wi, mode) / s.pdf_solid_angle;
     s.sampled_class = RoughnessClass::Diffuse;
     return s;
@@ -284,10 +287,16 @@ BsdfSample sample_model(const RoughPlasticBsdf& b, const Vec2f& uv, const Vec3f&
         s.wi = warp::square_to_cosine_hemisphere(u);
         s.sampled_class = RoughnessClass::Diffuse;
     }
-    if (!(cos_theta(s.wi) > 0.f)) return BsdfSample{};
+    if (!(cos_theta(s.wi) > 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
     // A mixture: the weight is the whole BSDF over the whole density (one-sample MIS).
     s.pdf_solid_angle = pdf_model(b, uv, wo, s.wi);
-    if (!(s.pdf_solid_angle > 0.f)) return BsdfSample{};
+    if (!(s.pdf_solid_angle > 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
     s.weight = eval_model(b, uv, wo, s.wi, mode) / s.pdf_solid_angle;
     return s;
 }

@@ -75,9 +75,15 @@ BsdfSample sample_model(const RoughConductorBsdf& b, const Vec2f& uv, const Vec3
     const float wo_m = wo.dot(m);
     if (!(wo_m > 0.f) || !(m.z() > 0.f)) return s;
     s.wi = reflect_about(wo, m);
-    if (!(cos_theta(s.wi) > 0.f)) return BsdfSample{};
+    if (!(cos_theta(s.wi) > 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
     s.pdf_solid_angle = microfacet_pdf(d, b.roughness.sample_visible, wo, m) / (4.f * wo_m);
-    if (!(s.pdf_solid_angle > 0.f)) return BsdfSample{};
+    if (!(s.pdf_solid_angle > 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
     // eval / pdf in closed form: with visible normals D and G1(wo) cancel, leaving G1(wi)
     // (Heitz & d'Eon 2014, eq. 14); otherwise G (wo.m) / (cos_o cos_m).
     const float g = b.roughness.sample_visible ? d.G1(s.wi, m)
@@ -200,7 +206,10 @@ BsdfSample sample_model(const RoughDielectricBsdf& b, const Vec2f& uv, const Vec
     // Reflection with probability F(wo.m), so that F cancels from the weight (Walter Sec. 5.3).
     if (u_lobe < f.reflectance) {
         s.wi = reflect_about(wo, m);
-        if (!(cos_theta(s.wi) * cos_o > 0.f)) return BsdfSample{};
+        if (!(cos_theta(s.wi) * cos_o > 0.f)) {
+            s = BsdfSample{};
+            return s;
+        }
         const float wi_m = std::abs(s.wi.dot(m));
         s.pdf_solid_angle = pdf_m * f.reflectance / (4.f * wi_m);
         const float g =
@@ -210,7 +219,10 @@ BsdfSample sample_model(const RoughDielectricBsdf& b, const Vec2f& uv, const Vec
     }
     // Refraction about m (Walter eq. 40); f.cos_theta_t is signed along m.
     s.wi = (-f.eta_ti * wo + (f.eta_ti * wo_m + f.cos_theta_t) * m).normalized();
-    if (!(cos_theta(s.wi) * cos_o < 0.f)) return BsdfSample{};
+    if (!(cos_theta(s.wi) * cos_o < 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
     const float eta_rel = f.eta_it;
     const float wi_m = s.wi.dot(m);
     s.pdf_solid_angle = pdf_m * (1.f - f.reflectance) * refraction_jacobian(wo_m, wi_m, eta_rel);

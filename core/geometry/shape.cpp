@@ -108,12 +108,14 @@ Shape::Shape(TriangleMesh mesh, int bsdf, std::string id)
         total += areas[t];
     }
     area_ = static_cast<float>(total);
+    pdf_area_ = area_ > 0.f ? 1.f / area_ : 0.f;
     triangle_areas_ = Distribution1D(areas);
 }
 
 Shape::Shape(Sphere sphere, int bsdf, std::string id)
     : geometry_(sphere), bsdf_(bsdf), id_(std::move(id)) {
     area_ = 4.f * kPi * sphere.radius * sphere.radius;
+    pdf_area_ = area_ > 0.f ? 1.f / area_ : 0.f;
 }
 
 SurfaceInteraction Shape::interaction(std::uint32_t primitive, const Vec2f& barycentric,
@@ -148,28 +150,6 @@ SurfaceInteraction Shape::interaction_at(std::uint32_t primitive, const Vec2f& p
         fill_sphere_interaction(sphere, dir, si);
     }
     return si;
-}
-
-ShapeSample Shape::sample_area(const Vec2f& u, float u_primitive) const {
-    ShapeSample s;
-    if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
-        if (!triangle_areas_.valid()) return s;
-        const auto triangle = static_cast<std::size_t>(triangle_areas_.sample(u_primitive));
-        // Only the point and the face normal: an emitter sample needs no shading frame or
-        // differentials (this runs once per path vertex, as often as a ray cast).
-        const Vec2f b = warp::square_to_uniform_triangle(u);
-        const std::uint32_t* index = &mesh->indices[3 * triangle];
-        s.p = (1.f - b.x() - b.y()) * mesh->positions[index[0]] +
-              b.x() * mesh->positions[index[1]] + b.y() * mesh->positions[index[2]];
-        s.n_geometric = face_normals_[triangle];
-    } else {
-        const auto& sphere = std::get<Sphere>(geometry_);
-        const Vec3f dir = warp::square_to_uniform_sphere(u);
-        s.p = sphere.center + sphere.radius * dir;
-        s.n_geometric = sphere.flip_normals ? Vec3f(-dir) : dir;
-    }
-    s.pdf_area = area_ > 0.f ? 1.f / area_ : 0.f;
-    return s;
 }
 
 }  // namespace gdmlt

@@ -8,6 +8,7 @@
 #include "core/geometry/interaction.h"
 #include "core/math/types.h"
 #include "core/sampling/distribution_1d.h"
+#include "core/sampling/warp.h"
 
 namespace gdmlt {
 
@@ -59,8 +60,29 @@ class Shape {
     /// Differential geometry at surface parameters (the manifold walk's move along a surface).
     SurfaceInteraction interaction_at(std::uint32_t primitive, const Vec2f& surface_param) const;
 
-    /// A point uniformly distributed by area (pdf_area = 1/area).
-    ShapeSample sample_area(const Vec2f& u, float u_primitive) const;
+    /// A point uniformly distributed by area (pdf_area = 1/area). Inline: next-event
+    /// estimation calls it once per path vertex, as often as a ray is cast.
+    ShapeSample sample_area(const Vec2f& u, float u_primitive) const {
+        ShapeSample s;
+        if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
+            if (!triangle_areas_.valid()) return s;
+            const auto triangle = static_cast<std::size_t>(triangle_areas_.sample(u_primitive));
+            // Only the point and the face normal: an emitter sample needs no shading frame or
+            // differentials.
+            const Vec2f b = warp::square_to_uniform_triangle(u);
+            const std::uint32_t* index = &mesh->indices[3 * triangle];
+            s.p = (1.f - b.x() - b.y()) * mesh->positions[index[0]] +
+                  b.x() * mesh->positions[index[1]] + b.y() * mesh->positions[index[2]];
+            s.n_geometric = face_normals_[triangle];
+        } else {
+            const auto& sphere = std::get<Sphere>(geometry_);
+            const Vec3f dir = warp::square_to_uniform_sphere(u);
+            s.p = sphere.center + sphere.radius * dir;
+            s.n_geometric = sphere.flip_normals ? Vec3f(-dir) : dir;
+        }
+        s.pdf_area = pdf_area_;
+        return s;
+    }
 
   private:
     std::variant<TriangleMesh, Sphere> geometry_;
@@ -72,6 +94,7 @@ class Shape {
     int bsdf_ = -1;
     int emitter_ = -1;
     float area_ = 0.f;
+    float pdf_area_ = 0.f;  // 1 / area_ (0 for no area), once rather than per sample
     std::string id_;
 };
 

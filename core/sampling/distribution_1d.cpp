@@ -21,12 +21,7 @@ Distribution1D::Distribution1D(const std::vector<float>& weights)
     cdf_.back() = 1.0;
 }
 
-std::size_t Distribution1D::sample(float u, float* u_remapped) const {
-    // One entry (a scene with one light): no search; the path tracer calls this per bounce.
-    if (pmf_.size() == 1) {
-        if (u_remapped) *u_remapped = u;
-        return 0;
-    }
+std::size_t Distribution1D::search(float u, float* u_remapped) const {
     const double target = static_cast<double>(u);
     // First bin whose upper CDF value exceeds u; zero-weight bins are never chosen because
     // their upper bound equals their lower bound.

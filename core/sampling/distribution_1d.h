@@ -21,9 +21,19 @@ class Distribution1D {
 
     /// Chooses an index with probability pmf(index) from u in [0,1); `u_remapped` receives a
     /// fresh uniform number in [0,1) for further use.
-    std::size_t sample(float u, float* u_remapped = nullptr) const;
+    std::size_t sample(float u, float* u_remapped = nullptr) const {
+        // One entry (a scene with one light, a light of one triangle): no search. Inline, as
+        // the path tracer calls this twice per bounce for next-event estimation.
+        if (pmf_.size() == 1) {
+            if (u_remapped) *u_remapped = u;
+            return 0;
+        }
+        return search(u, u_remapped);
+    }
 
   private:
+    std::size_t search(float u, float* u_remapped) const;
+
     std::vector<float> pmf_;
     std::vector<double> cdf_;  // size()+1 entries, cdf_[0] = 0, cdf_.back() = 1
     double total_ = 0.0;

@@ -89,10 +89,13 @@ SurfaceInteraction Scene::intersect(const Ray& ray) const {
 }
 
 SurfaceInteraction Scene::interaction(const Ray& ray, const RayHit& hit) const {
-    if (!hit.valid()) return SurfaceInteraction{};
-    SurfaceInteraction si = shapes_[static_cast<std::size_t>(hit.shape)].interaction(
-        hit.primitive, hit.barycentric, ray.origin, ray.direction, hit.t);
-    si.shape = hit.shape;
+    // One return object, built in the caller's (NRVO): an early `return SurfaceInteraction{}`
+    // beside `return si` made GCC build `si` on the stack and copy its 136 bytes out per hit.
+    SurfaceInteraction si =
+        hit.valid() ? shapes_[static_cast<std::size_t>(hit.shape)].interaction(
+                          hit.primitive, hit.barycentric, ray.origin, ray.direction, hit.t)
+                    : SurfaceInteraction{};
+    if (hit.valid()) si.shape = hit.shape;
     return si;
 }
 
@@ -118,13 +121,19 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         const float area_total = shape.surface_area();
         const Vec3f d = p - ref_p;
         const float dist2 = d.squaredNorm();
-        if (!(dist2 > 0.f) || !(area_total > 0.f)) return EmitterSample{};
+        if (!(dist2 > 0.f) || !(area_total > 0.f)) {
+            s = EmitterSample{};
+            return s;
+        }
         s.distance = std::sqrt(dist2);
         s.wi = d / s.distance;
         s.p = p;
         s.n_geometric = n;
         const float cos_light = -n.dot(s.wi);
-        if (cos_light <= 0.f) return EmitterSample{};  // back of a one-sided emitter
+        if (cos_light <= 0.f) {  // back of a one-sided emitter
+            s = EmitterSample{};
+            return s;
+        }
         // Area to solid angle: p_omega = p_A * d^2 / |cos theta_light|.
         s.pdf_solid_angle = pmf * dist2 / (cos_light * area_total);
         s.radiance = area->radiance.eval(uv);
@@ -134,13 +143,19 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
             is_spot ? std::get<SpotEmitter>(e).position : std::get<PointEmitter>(e).position;
         const Vec3f d = position - ref_p;
         const float dist2 = d.squaredNorm();
-        if (!(dist2 > 0.f)) return EmitterSample{};
+        if (!(dist2 > 0.f)) {
+            s = EmitterSample{};
+            return s;
+        }
         s.distance = std::sqrt(dist2);
         s.wi = d / s.distance;
         s.p = position;
         const Rgb intensity = is_spot ? std::get<SpotEmitter>(e).intensity_towards(-s.wi)
                                       : std::get<PointEmitter>(e).intensity;
-        if (is_black(intensity)) return EmitterSample{};
+        if (is_black(intensity)) {
+            s = EmitterSample{};
+            return s;
+        }
         s.radiance = intensity / dist2;
         s.pdf_solid_angle = pmf;
         s.delta = true;
@@ -155,7 +170,10 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         // of all infinite emitters together (see the header).
         if (const auto* envmap = std::get_if<EnvmapEmitter>(&e)) {
             const EnvmapEmitter::Sample es = envmap->sample(u);
-            if (!(es.pdf_solid_angle > 0.f)) return EmitterSample{};
+            if (!(es.pdf_solid_angle > 0.f)) {
+                s = EmitterSample{};
+                return s;
+            }
             s.wi = es.direction;
         } else {
             s.wi = warp::square_to_uniform_sphere(u);
@@ -164,7 +182,10 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         s.radiance = environment(s.wi);
         s.distance = kInfinity;
     }
-    if (!std::isfinite(s.pdf_solid_angle) || !is_finite(s.radiance)) return EmitterSample{};
+    if (!std::isfinite(s.pdf_solid_angle) || !is_finite(s.radiance)) {
+        s = EmitterSample{};
+        return s;
+    }
     return s;
 }
 

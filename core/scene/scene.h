@@ -56,7 +56,8 @@ struct SamplerSettings {
     std::uint64_t seed = 0;
 };
 
-/// A point sampled on an emitter as seen from a reference point.
+/// A point sampled on an emitter as seen from a reference point. sample_emitter keeps one named
+/// return object (see BsdfSample): it runs at every path vertex.
 struct EmitterSample {
     Vec3f p = Vec3f::Zero();            // on the emitter (unused for infinite emitters)
     Vec3f n_geometric = Vec3f::Zero();  // zero for point and infinite emitters
