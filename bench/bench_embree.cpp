@@ -6,13 +6,18 @@
 //                            the shifts, PSSMLT and BDPT trace);
 //   BM_Embree_packet/KIND  - 16 consecutive precomputed rays per iteration (rtcIntersect16 /
 //                            rtcOccluded16, as the path tracer's wavefront traces; the rays of
-//                            one packet are as unrelated as a wavefront's).
+//                            one packet are as unrelated as a wavefront's, camera_pixel's
+//                            excepted);
+//   BM_Embree_packet/camera_pixel_coherent - camera_pixel's packets flagged coherent, as the
+//                            wavefront traces its camera rays (Accelerator::intersect_packet).
 // items_per_second is rays per second either way; run with --benchmark_filter and compare at the
 // renderer's thread count (the `/threads:2` rows are two threads querying the same BVH, the rate
 // summed over both).
 //
 // Workload (built once per process, fixed seed, untimed), in the proportions of a path tracer:
 //   camera    - camera rays through uniformly random film positions (coherent-ish);
+//   camera_pixel - camera rays through uniformly random pixels, 64 jittered rays per pixel in a
+//               row, as the wavefront takes a pixel's samples (a packet is one pixel's rays);
 //   bounce    - from the hit points of those rays, cosine-distributed directions about the
 //               geometric normal on the camera's side (incoherent, like diffuse bounces);
 //   shadow    - from the same points to a point chosen by Scene::sample_emitter (occlusion
@@ -21,6 +26,7 @@
 #include <benchmark/benchmark.h>
 
 #include <array>
+#include <cmath>
 #include <exception>
 #include <memory>
 #include <span>
@@ -40,11 +46,14 @@ using namespace gdmlt;
 
 constexpr int kRays = 1 << 18;
 constexpr std::uint64_t kSeed = 20261202;
+/// camera_pixel: samples per pixel, consecutive as the path tracer's wavefront takes them.
+constexpr int kPixelSamples = 64;
 
 struct Workload {
     std::unique_ptr<Scene> scene;
     std::unique_ptr<Accelerator> accelerator;  // our own, over the scene's shapes
     std::vector<Ray> camera, bounce, shadow;
+    std::vector<Ray> camera_pixel;  // kPixelSamples consecutive rays per pixel
     std::string error;
 };
 
@@ -79,6 +88,18 @@ Workload make_workload() {
                 w.shadow.push_back(r);
             }
         }
+        // camera_pixel: uniformly random pixels, kPixelSamples jittered rays through each.
+        for (std::uint64_t i = 0; static_cast<int>(w.camera_pixel.size()) < kRays; ++i) {
+            IndependentStream stream(derive_stream(kSeed + 1, i));
+            const Vec2f u = stream.next_2d();
+            const float px = std::floor(u.x() * static_cast<float>(film.width));
+            const float py = std::floor(u.y() * static_cast<float>(film.height));
+            for (int s = 0; s < kPixelSamples; ++s) {
+                const Vec2f j = stream.next_2d();
+                w.camera_pixel.push_back(
+                    w.scene->camera().generate_ray(Vec2f(px + j.x(), py + j.y())));
+            }
+        }
         if (w.shadow.empty()) throw InputError("the scene has no emitter to cast shadow rays to");
     } catch (const std::exception& e) {
         w.error = e.what();
@@ -91,7 +112,7 @@ const Workload& workload() {
     return w;
 }
 
-enum class Kind { Camera, Bounce, Shadow };
+enum class Kind { Camera, CameraPixel, Bounce, Shadow };
 
 /// The workload's rays of `kind`, or nullptr (and the benchmark skipped) if it failed to build.
 const std::vector<Ray>* rays_of(benchmark::State& state, Kind kind) {
@@ -100,6 +121,7 @@ const std::vector<Ray>* rays_of(benchmark::State& state, Kind kind) {
         state.SkipWithError(w.error.c_str());
         return nullptr;
     }
+    if (kind == Kind::CameraPixel) return &w.camera_pixel;
     return kind == Kind::Camera ? &w.camera : kind == Kind::Bounce ? &w.bounce : &w.shadow;
 }
 
@@ -128,7 +150,7 @@ void BM_Embree(benchmark::State& state, Kind kind) {
                            benchmark::Counter::kAvgThreads);
 }
 
-void BM_Embree_packet(benchmark::State& state, Kind kind) {
+void BM_Embree_packet(benchmark::State& state, Kind kind, bool coherent) {
     const std::vector<Ray>* kind_rays = rays_of(state, kind);
     if (!kind_rays) return;
     const std::vector<Ray>& rays = *kind_rays;
@@ -149,7 +171,7 @@ void BM_Embree_packet(benchmark::State& state, Kind kind) {
             accelerator.occluded_packet(packet, blocked);
             for (const bool b : blocked) hit_count += b ? 1 : 0;
         } else {
-            accelerator.intersect_packet(packet, hits);
+            accelerator.intersect_packet(packet, hits, coherent);
             for (const RayHit& h : hits) hit_count += h.valid() ? 1 : 0;
         }
         if (++p == packets) p = 0;
@@ -163,6 +185,13 @@ void BM_Embree_packet(benchmark::State& state, Kind kind) {
 }
 
 [[maybe_unused]] const bool kRegistered = [] {
+    const auto register_packet = [](const std::string& name, Kind kind, bool coherent) {
+        benchmark::RegisterBenchmark(("BM_Embree_packet/" + name).c_str(), BM_Embree_packet, kind,
+                                     coherent)
+            ->Threads(1)
+            ->Threads(2)
+            ->UseRealTime();
+    };
     const std::pair<const char*, Kind> kinds[] = {
         {"camera", Kind::Camera}, {"bounce", Kind::Bounce}, {"shadow", Kind::Shadow}};
     for (const auto& [name, kind] : kinds) {
@@ -170,12 +199,11 @@ void BM_Embree_packet(benchmark::State& state, Kind kind) {
             ->Threads(1)
             ->Threads(2)
             ->UseRealTime();
-        benchmark::RegisterBenchmark((std::string("BM_Embree_packet/") + name).c_str(),
-                                     BM_Embree_packet, kind)
-            ->Threads(1)
-            ->Threads(2)
-            ->UseRealTime();
+        register_packet(name, kind, false);
     }
+    // The wavefront's own camera packets: one pixel's samples, flagged coherent.
+    register_packet("camera_pixel", Kind::CameraPixel, false);
+    register_packet("camera_pixel_coherent", Kind::CameraPixel, true);
     return true;
 }();
 

@@ -148,7 +148,8 @@ void fill_packet(std::span<const Ray> rays, int (&valid)[Accelerator::kPacketSiz
 
 }  // namespace
 
-void Accelerator::intersect_packet(std::span<const Ray> rays, std::span<RayHit> hits) const {
+void Accelerator::intersect_packet(std::span<const Ray> rays, std::span<RayHit> hits,
+                                   bool coherent) const {
     const int count = static_cast<int>(rays.size());
     if (count == 0) return;
     alignas(64) int valid[kPacketSize];
@@ -159,7 +160,8 @@ void Accelerator::intersect_packet(std::span<const Ray> rays, std::span<RayHit> 
         packet.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
     }
     RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
+    rtcInitIntersectContext(&context);  // flags: RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT
+    if (coherent) context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     rtcIntersect16(valid, impl_->scene, &context, &packet);
     for (int i = 0; i < count; ++i) {
         RayHit& hit = hits[static_cast<std::size_t>(i)];

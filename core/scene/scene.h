@@ -130,9 +130,11 @@ class Scene {
     SurfaceInteraction intersect(const Ray& ray) const;
     bool occluded(const Ray& ray) const { return accelerator_->occluded(ray); }
     /// Packets of up to Accelerator::kPacketSize rays traced together; turn each hit into an
-    /// interaction with interaction(ray, hit) (the same as intersect(ray) gives).
-    void intersect_packet(std::span<const Ray> rays, std::span<RayHit> hits) const {
-        accelerator_->intersect_packet(rays, hits);
+    /// interaction with interaction(ray, hit) (the same as intersect(ray) gives). `coherent`:
+    /// see Accelerator::intersect_packet.
+    void intersect_packet(std::span<const Ray> rays, std::span<RayHit> hits,
+                          bool coherent = false) const {
+        accelerator_->intersect_packet(rays, hits, coherent);
     }
     void occluded_packet(std::span<const Ray> rays, std::span<bool> occluded) const {
         accelerator_->occluded_packet(rays, occluded);

@@ -64,6 +64,12 @@ class ThroughputSmoke(unittest.TestCase):
         for form in ("rays_per_s", "packet_rays_per_s"):
             self.assertEqual(set(raw[form]), KINDS, form)
             self.assertTrue(all(positive(v) for v in raw[form].values()), raw[form])
+        # The wavefront's camera packets are one pixel's samples flagged coherent: the packet
+        # rate for camera rays is that form's, the other two are reported beside it.
+        camera = raw["camera_packet_rays_per_s"]
+        self.assertEqual(set(camera), {"camera", "camera_pixel", "camera_pixel_coherent"})
+        self.assertTrue(all(positive(v) for v in camera.values()), camera)
+        self.assertEqual(raw["packet_rays_per_s"]["camera"], camera["camera_pixel_coherent"])
         for share in ("path_share_of_raw", "path_share_of_raw_packets"):
             self.assertEqual(len(raw[share]), 2, share)
             self.assertTrue(all(positive(x) for x in raw[share]), raw[share])
@@ -72,6 +78,8 @@ class ThroughputSmoke(unittest.TestCase):
                                      r"camera [\d.]+, bounce [\d.]+, shadow [\d.]+ M rays/s")
         self.assertRegex(run.stdout, r"raw Embree \(bench_embree, 1 threads, packets of 16\): "
                                      r"camera [\d.]+, bounce [\d.]+, shadow [\d.]+ M rays/s")
+        self.assertRegex(run.stdout, r"raw Embree camera packets \(.*\): camera [\d.]+, "
+                                     r"camera_pixel [\d.]+, camera_pixel_coherent [\d.]+ M rays/s")
         self.assertRegex(run.stdout, r"path tracer at [\d.]+% of raw Embree \(")
         self.assertRegex(run.stdout, r"path tracer at [\d.]+% of raw Embree's packet rates")
 
