@@ -42,6 +42,9 @@ import time
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+# metrics.py is imported where it is used: it needs OpenImageIO, which the synthetic sweep does
+# not.
+sys.path.insert(0, HERE)
 OUT = os.path.join(HERE, "out")
 ROOT = os.path.dirname(HERE)
 SHARED = os.path.join(os.path.dirname(ROOT), "shared")
@@ -118,7 +121,6 @@ def plot(rows, path):
 def cli_timing(cli, repetitions):
     """End-to-end `reconstruct` timing on a synthetic 1280x720 raw.exr."""
     import OpenImageIO as oiio
-    sys.path.insert(0, HERE)
     import metrics
     w, h = 1280, 720
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
@@ -178,7 +180,6 @@ def without_variance_layers(raw, path):
 
 def scene_comparison(args, cli):
     """Each reconstruction method on a GDPT render of each scene against its reference."""
-    sys.path.insert(0, HERE)
     import metrics
     names = args.scenes or sorted(os.path.splitext(f)[0] for f in os.listdir(args.references)
                                   if f.endswith(".exr"))
