@@ -212,6 +212,8 @@ class Bsdf {
     BsdfLobes lobes() const;
     const BsdfModel& front() const { return front_; }
     bool is_two_sided() const { return two_sided_; }
+    /// The model seen from behind when it differs from the front one (two-sided only).
+    const BsdfModel* back() const { return back_ ? &*back_ : nullptr; }
 
   private:
     const BsdfModel& model_for(const Vec3f& wo, Vec3f* wo_flip, bool* flipped) const;

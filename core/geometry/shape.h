@@ -60,20 +60,36 @@ class Shape {
     /// Differential geometry at surface parameters (the manifold walk's move along a surface).
     SurfaceInteraction interaction_at(std::uint32_t primitive, const Vec2f& surface_param) const;
 
+    /// A mesh's triangle chosen by area with `u_primitive`, as sample_area chooses it: its
+    /// corners and unit face normal (null pointers for a sphere or a mesh without area).
+    struct AreaTriangle {
+        const Vec3f *a = nullptr, *b = nullptr, *c = nullptr;
+        const Vec3f* n_geometric = nullptr;
+    };
+    AreaTriangle area_triangle(float u_primitive) const {
+        AreaTriangle t;
+        const auto* mesh = std::get_if<TriangleMesh>(&geometry_);
+        if (!mesh || !triangle_areas_.valid()) return t;
+        const auto triangle = static_cast<std::size_t>(triangle_areas_.sample(u_primitive));
+        const std::uint32_t* index = &mesh->indices[3 * triangle];
+        t.a = &mesh->positions[index[0]];
+        t.b = &mesh->positions[index[1]];
+        t.c = &mesh->positions[index[2]];
+        t.n_geometric = &face_normals_[triangle];
+        return t;
+    }
     /// A point uniformly distributed by area (pdf_area = 1/area). Inline: next-event
     /// estimation calls it once per path vertex, as often as a ray is cast.
     ShapeSample sample_area(const Vec2f& u, float u_primitive) const {
         ShapeSample s;
-        if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
-            if (!triangle_areas_.valid()) return s;
-            const auto triangle = static_cast<std::size_t>(triangle_areas_.sample(u_primitive));
+        if (is_mesh()) {
+            const AreaTriangle triangle = area_triangle(u_primitive);
+            if (!triangle.a) return s;
             // Only the point and the face normal: an emitter sample needs no shading frame or
             // differentials.
             const Vec2f b = warp::square_to_uniform_triangle(u);
-            const std::uint32_t* index = &mesh->indices[3 * triangle];
-            s.p = (1.f - b.x() - b.y()) * mesh->positions[index[0]] +
-                  b.x() * mesh->positions[index[1]] + b.y() * mesh->positions[index[2]];
-            s.n_geometric = face_normals_[triangle];
+            s.p = (1.f - b.x() - b.y()) * *triangle.a + b.x() * *triangle.b + b.y() * *triangle.c;
+            s.n_geometric = *triangle.n_geometric;
         } else {
             const auto& sphere = std::get<Sphere>(geometry_);
             const Vec3f dir = warp::square_to_uniform_sphere(u);

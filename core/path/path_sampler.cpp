@@ -4,23 +4,20 @@
 namespace gdmlt {
 namespace {
 
-/// One vertex of the estimator, generic over the stream type so that the path tracer's
-/// IndependentStream (a final class) is inlined: seven virtual calls per bounce otherwise cost
-/// about as much as the PCG itself. The one-path loop (trace_path) and the many-path driver
-/// (continue_path) both run this body, so they cannot drift apart.
+/// The first part of a vertex (see begin_vertex in the header), generic over the stream type so
+/// that the path tracer's IndependentStream (a final class) is inlined: seven virtual calls per
+/// bounce otherwise cost about as much as the PCG itself.
 template <class Stream>
-void path_vertex(const Scene& scene, const SurfaceInteraction& si, Stream& stream,
-                 const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
-                 NextEventRay& next_event) {
-    next_event.requested = false;
+bool vertex_begin(const Scene& scene, const SurfaceInteraction& si, Stream& stream,
+                  const PathSamplerSettings& settings, PathState& state, VertexNumbers& u) {
     const int depth = state.depth;
     const Ray& ray = state.ray;
     // Every bounce draws its fixed block of dimensions up front, used or not.
-    const float u_emitter_choice = stream.next_1d();
-    const Vec2f u_emitter = stream.next_2d();
-    const float u_lobe = stream.next_1d();
-    const Vec2f u_bsdf = stream.next_2d();
-    const float u_roulette = stream.next_1d();
+    u.emitter_choice = stream.next_1d();
+    u.emitter = stream.next_2d();
+    u.lobe = stream.next_1d();
+    u.bsdf = stream.next_2d();
+    u.roulette = stream.next_1d();
     state.active = false;  // until a continuation ray is found
     // An emitter hit here ends a path of depth + 1 segments, next-event estimation from
     // here one of depth + 2.
@@ -35,12 +32,11 @@ void path_vertex(const Scene& scene, const SurfaceInteraction& si, Stream& strea
                                                   scene.pdf_environment_solid_angle(ray.direction));
             state.radiance += state.throughput * scene.environment(ray.direction) * w;
         }
-        return;
+        return false;
     }
 
-    const Vec3f wo_world = -ray.direction;
     if (count_emission) {
-        const Rgb emitted = scene.emitted(si, wo_world);
+        const Rgb emitted = scene.emitted(si, -ray.direction);
         if (!is_black(emitted)) {
             const float w = state.prev_delta
                                 ? 1.f
@@ -51,34 +47,72 @@ void path_vertex(const Scene& scene, const SurfaceInteraction& si, Stream& strea
     }
 
     // A further vertex would make the path longer than max_depth segments.
-    if (settings.max_depth >= 0 && depth + 1 >= settings.max_depth) return;
+    return !(settings.max_depth >= 0 && depth + 1 >= settings.max_depth);
+}
 
+/// One vertex of the estimator. The one-path loop (trace_path) and the many-path driver
+/// (continue_path) both run this body, so they cannot drift apart.
+template <class Stream>
+void path_vertex(const Scene& scene, const SurfaceInteraction& si, Stream& stream,
+                 const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
+                 NextEventRay& next_event) {
+    next_event.requested = false;
+    VertexNumbers u;
+    if (vertex_begin(scene, si, stream, settings, state, u))
+        finish_vertex(scene, si, u, settings, counters, state, next_event);
+}
+
+/// One path from start to end, each ray traced as it is needed.
+template <class Stream>
+Rgb trace_path(const Scene& scene, const Ray& camera_ray, Stream& stream,
+               const PathSamplerSettings& settings, PathCounters& counters) {
+    PathState state = start_path(camera_ray, counters);
+    NextEventRay next_event;
+    do {
+        const SurfaceInteraction si = scene.intersect(state.ray);
+        path_vertex(scene, si, stream, settings, counters, state, next_event);
+        if (next_event.requested && !scene.occluded(next_event.shadow))
+            state.radiance += next_event.contribution;
+    } while (state.active);
+    return state.radiance;
+}
+
+}  // namespace
+
+bool sample_next_event(const Scene& scene, const SurfaceInteraction& si, const Vec3f& wo,
+                       const VertexNumbers& u, const Rgb& throughput, NextEventRay& next_event) {
+    next_event.requested = false;
+    const EmitterSample es = scene.sample_emitter(si.p, u.emitter_choice, u.emitter);
+    if (!es.valid()) return false;
+    const Bsdf& bsdf = scene.bsdf_of(si);
+    const Vec3f wi = si.shading.to_local(es.wi);
+    const Rgb f = bsdf.eval(si.uv, wo, wi);
+    if (is_black(f)) return false;
+    next_event.shadow = std::isinf(es.distance)
+                            ? spawn_ray(si.p, si.n_geometric, es.wi)
+                            : spawn_ray_to(si.p, si.n_geometric, es.p, es.n_geometric);
+    const float w = es.delta ? 1.f : power_heuristic(es.pdf_solid_angle, bsdf.pdf(si.uv, wo, wi));
+    next_event.contribution = throughput * f * es.radiance * (w / es.pdf_solid_angle);
+    next_event.requested = true;
+    return true;
+}
+
+void finish_vertex(const Scene& scene, const SurfaceInteraction& si, const VertexNumbers& u,
+                   const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
+                   NextEventRay& next_event) {
+    next_event.requested = false;
+    state.active = false;  // until a continuation ray is found
+    const int depth = state.depth;
+    const Vec3f wo_world = -state.ray.direction;
     const Bsdf& bsdf = scene.bsdf_of(si);
     const Vec3f wo = si.shading.to_local(wo_world);
 
-    // Next-event estimation: only where some lobe has a density. The shadow ray is traced by
-    // the caller; its contribution is computed here, with the throughput before this vertex's
-    // BSDF sample, and added only if the ray is unblocked.
-    if (!bsdf.is_delta() && depth + 2 >= settings.min_depth) {
-        const EmitterSample es = scene.sample_emitter(si.p, u_emitter_choice, u_emitter);
-        if (es.valid()) {
-            const Vec3f wi = si.shading.to_local(es.wi);
-            const Rgb f = bsdf.eval(si.uv, wo, wi);
-            if (!is_black(f)) {
-                next_event.shadow = std::isinf(es.distance)
-                                        ? spawn_ray(si.p, si.n_geometric, es.wi)
-                                        : spawn_ray_to(si.p, si.n_geometric, es.p, es.n_geometric);
-                ++counters.shadow_rays;
-                const float w =
-                    es.delta ? 1.f : power_heuristic(es.pdf_solid_angle, bsdf.pdf(si.uv, wo, wi));
-                next_event.contribution =
-                    state.throughput * f * es.radiance * (w / es.pdf_solid_angle);
-                next_event.requested = true;
-            }
-        }
-    }
+    // Next-event estimation: only where some lobe has a density.
+    if (!bsdf.is_delta() && depth + 2 >= settings.min_depth &&
+        sample_next_event(scene, si, wo, u, state.throughput, next_event))
+        ++counters.shadow_rays;
 
-    const BsdfSample bs = bsdf.sample(si.uv, wo, u_lobe, u_bsdf);
+    const BsdfSample bs = bsdf.sample(si.uv, wo, u.lobe, u.bsdf);
     if (!bs.valid()) return;
     const Vec3f wi_world = si.shading.to_world(bs.wi);
     // Light leaks through shading normals: a direction on the wrong side of the geometric
@@ -98,7 +132,7 @@ void path_vertex(const Scene& scene, const SurfaceInteraction& si, Stream& strea
     if (depth + 1 >= settings.rr_depth) {
         const float q =
             std::min(state.throughput.maxCoeff() * state.eta_product * state.eta_product, 0.95f);
-        if (!(u_roulette < q)) return;
+        if (!(u.roulette < q)) return;
         state.throughput /= q;
     }
     if (state.throughput.maxCoeff() <= 0.f) return;
@@ -107,22 +141,10 @@ void path_vertex(const Scene& scene, const SurfaceInteraction& si, Stream& strea
     ++counters.bounce_rays;
 }
 
-/// One path from start to end, each ray traced as it is needed.
-template <class Stream>
-Rgb trace_path(const Scene& scene, const Ray& camera_ray, Stream& stream,
-               const PathSamplerSettings& settings, PathCounters& counters) {
-    PathState state = start_path(camera_ray, counters);
-    NextEventRay next_event;
-    do {
-        const SurfaceInteraction si = scene.intersect(state.ray);
-        path_vertex(scene, si, stream, settings, counters, state, next_event);
-        if (next_event.requested && !scene.occluded(next_event.shadow))
-            state.radiance += next_event.contribution;
-    } while (state.active);
-    return state.radiance;
+bool begin_vertex(const Scene& scene, const SurfaceInteraction& si, IndependentStream& stream,
+                  const PathSamplerSettings& settings, PathState& state, VertexNumbers& u) {
+    return vertex_begin(scene, si, stream, settings, state, u);
 }
-
-}  // namespace
 
 PathState start_path(const Ray& camera_ray, PathCounters& counters) {
     ++counters.paths;

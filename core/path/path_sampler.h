@@ -89,6 +89,15 @@ struct NextEventRay {
     bool requested = false;
 };
 
+/// The uniform numbers one vertex draws, in the order it draws them (kDimensionsPerBounce).
+struct VertexNumbers {
+    float emitter_choice = 0.f;
+    Vec2f emitter = Vec2f::Zero();
+    float lobe = 0.f;
+    Vec2f bsdf = Vec2f::Zero();
+    float roulette = 0.f;
+};
+
 /// A path starting with `camera_ray` (counted as a path and a camera ray).
 PathState start_path(const Ray& camera_ray, PathCounters& counters);
 
@@ -100,6 +109,25 @@ PathState start_path(const Ray& camera_ray, PathCounters& counters);
 void continue_path(const Scene& scene, const SurfaceInteraction& si, IndependentStream& stream,
                    const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
                    NextEventRay& next_event);
+
+/// continue_path in two parts, for drivers that finish some vertices another way (the
+/// wavefront's vectorised diffuse vertices, core/path/diffuse_lanes.h). begin_vertex draws the
+/// vertex's numbers into `u`, adds what an emitter hit (or the environment, on a miss) gives,
+/// and returns whether the path goes on from `si` (false: state.active is false and the
+/// vertex is done). finish_vertex does the rest: next-event estimation, BSDF sampling and
+/// Russian roulette. continue_path is begin_vertex, then finish_vertex if it returned true.
+bool begin_vertex(const Scene& scene, const SurfaceInteraction& si, IndependentStream& stream,
+                  const PathSamplerSettings& settings, PathState& state, VertexNumbers& u);
+void finish_vertex(const Scene& scene, const SurfaceInteraction& si, const VertexNumbers& u,
+                   const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
+                   NextEventRay& next_event);
+
+/// finish_vertex's next-event estimation at `si` (wo: local direction the path came from): an
+/// emitter sample, and when the BSDF does not vanish towards it, the shadow ray for the caller
+/// to trace and the contribution `throughput * f * Le * w / pdf` (power heuristic, Veach 1997,
+/// eq. 9.13) to add if it is unblocked. Returns next_event.requested.
+bool sample_next_event(const Scene& scene, const SurfaceInteraction& si, const Vec3f& wo,
+                       const VertexNumbers& u, const Rgb& throughput, NextEventRay& next_event);
 
 /// Power heuristic with exponent 2 (Veach 1997, eq. 9.13), safe for zero and infinite pdfs.
 inline float power_heuristic(float pdf_a, float pdf_b) {

@@ -7,11 +7,13 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <optional>
 #include <span>
 #include <thread>
 #include <vector>
 
 #include "core/math/stopwatch.h"
+#include "core/path/diffuse_lanes.h"
 #include "core/render/film_buffer.h"
 #include "core/render/pixel_passes.h"
 #include "core/sampling/rng.h"
@@ -56,6 +58,7 @@ class ProgressReporter {
 /// 120 bytes each) stays in the L1/L2 caches.
 constexpr std::size_t kWavefrontPaths = 256;
 constexpr int kPacket = Accelerator::kPacketSize;
+static_assert(kWavefrontPaths <= DiffuseLanes::kCapacity);
 
 struct WavefrontLane {
     int x = 0, y = 0;  // crop-window pixel
@@ -66,12 +69,15 @@ struct WavefrontLane {
 /// The path tracer's wavefront (Laine et al. 2013, "Megakernels considered harmful", in its
 /// simplest form): every path of a batch takes one vertex, their rays traced in packets of 16,
 /// then their shadow rays likewise. Each path's arithmetic and random numbers are those of
-/// sample_path_radiance (continue_path runs the same code), so the image is the same as tracing
-/// path after path, up to Embree's packet and single-ray kernels rounding a hit differently.
-/// Per thread, reused across tiles so that its buffers are allocated once.
+/// sample_path_radiance (begin_vertex and finish_vertex, or for diffuse vertices DiffuseLanes,
+/// which computes the same in SIMD lanes), so the image is the same as tracing path after path,
+/// up to Embree's packet and single-ray kernels rounding a hit differently and DiffuseLanes'
+/// polynomial sine and cosine. Per thread, reused across tiles so that its buffers are
+/// allocated once.
 struct Wavefront {
     std::vector<WavefrontLane> lanes;
-    std::vector<std::uint32_t> active;  // lanes still tracing, in lane order
+    std::optional<DiffuseLanes> diffuse;  // for the scene of the last run
+    std::vector<std::uint32_t> active;    // lanes still tracing, in lane order
     struct Shadow {
         std::uint32_t lane;
         NextEventRay ray;
@@ -79,6 +85,7 @@ struct Wavefront {
     std::vector<Shadow> shadows;
 
     void run(const Scene& scene, const PathSamplerSettings& path, PathCounters& counters) {
+        if (!diffuse || !diffuse->is_for(scene)) diffuse.emplace(scene);
         active.clear();
         for (std::uint32_t i = 0; i < lanes.size(); ++i) active.push_back(i);
         std::array<Ray, kPacket> rays;
@@ -98,12 +105,26 @@ struct Wavefront {
                 scene.intersect_packet(std::span(rays.data(), count), hits, camera_rays);
                 for (std::size_t k = 0; k < count; ++k) {
                     WavefrontLane& lane = lanes[active[first + k]];
+                    const SurfaceInteraction si = scene.interaction(rays[k], hits[k]);
+                    VertexNumbers u;
+                    if (!begin_vertex(scene, si, lane.stream, path, lane.state, u)) continue;
+                    if (diffuse->handles(si)) {
+                        diffuse->push(active[first + k], si, u, lane.state, path);
+                        continue;
+                    }
                     Shadow shadow{active[first + k], {}};
-                    continue_path(scene, scene.interaction(rays[k], hits[k]), lane.stream, path,
-                                  counters, lane.state, shadow.ray);
+                    finish_vertex(scene, si, u, path, counters, lane.state, shadow.ray);
                     if (shadow.ray.requested) shadows.push_back(shadow);
                 }
             }
+            // The diffuse vertices of this bounce, all at once.
+            diffuse->run();
+            for (std::size_t i = 0; i < diffuse->size(); ++i) {
+                Shadow shadow{diffuse->id(i), {}};
+                diffuse->finish(i, lanes[shadow.lane].state, shadow.ray, counters);
+                if (shadow.ray.requested) shadows.push_back(shadow);
+            }
+            diffuse->clear();
             // Shadow rays before any path's next vertex: each path's radiance then sums its
             // terms in the order sample_path_radiance does.
             for (std::size_t first = 0; first < shadows.size(); first += kPacket) {

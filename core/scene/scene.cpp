@@ -189,6 +189,24 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
     return s;
 }
 
+bool Scene::emitter_triangle(float u_select, EmitterTriangle& out) const {
+    if (!emitter_selection_.valid()) return false;
+    const auto [index, pmf, u_remapped] = choose_emitter(u_select);
+    const auto* area = std::get_if<AreaEmitter>(&emitters_[index]);
+    if (!area || !area->radiance.is_constant()) return false;
+    const Shape& shape = shapes_[static_cast<std::size_t>(area->shape)];
+    const Shape::AreaTriangle triangle = shape.area_triangle(u_remapped);
+    if (!triangle.a) return false;
+    out.a = *triangle.a;
+    out.b = *triangle.b;
+    out.c = *triangle.c;
+    out.n_geometric = *triangle.n_geometric;
+    out.radiance = area->radiance.eval(Vec2f::Zero());
+    out.pmf = pmf;
+    out.area = shape.surface_area();
+    return true;
+}
+
 Scene::AreaPoint Scene::sample_area_emitter_point(std::size_t index, float u_primitive,
                                                   const Vec2f& u) const {
     const auto& area = std::get<AreaEmitter>(emitters_[index]);

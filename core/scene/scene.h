@@ -151,6 +151,19 @@ class Scene {
     /// so MIS weights agree on both sides.
     EmitterSample sample_emitter(const Vec3f& ref_p, float u_select, const Vec2f& u) const;
 
+    /// What sample_emitter samples when `u_select` chooses an area emitter of constant radiance
+    /// on a triangle mesh (most scenes' lights): the triangle it would pick, for callers that
+    /// compute the rest of sample_emitter themselves, many at once (core/path/diffuse_lanes.h).
+    /// False for every other choice; sample_emitter handles those.
+    struct EmitterTriangle {
+        Vec3f a = Vec3f::Zero(), b = Vec3f::Zero(), c = Vec3f::Zero();  // corners
+        Vec3f n_geometric = Vec3f::Zero();                              // unit face normal
+        Rgb radiance = Rgb::Zero();
+        float pmf = 0.f;   // probability of choosing the emitter
+        float area = 0.f;  // the emitter's whole area (its points are uniform by area)
+    };
+    bool emitter_triangle(float u_select, EmitterTriangle& out) const;
+
     /// A ray leaving an emitter chosen by power as in sample_emitter (`u_select`), at a point
     /// chosen by `u_position` (uniform by area) in a direction chosen by `u_direction`:
     /// cosine-weighted about an area light's normal, uniform over the sphere (point light) or

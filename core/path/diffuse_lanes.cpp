@@ -1,0 +1,174 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "core/path/diffuse_lanes.h"
+
+#include <immintrin.h>
+
+#include <cfloat>
+#include <cstdint>
+
+namespace gdmlt {
+namespace {
+
+// The kernel, compiled three times from one source (diffuse_lanes_kernel.inc), each time for
+// one instruction set: AVX-512 (x86-64-v4), AVX2 (x86-64-v3) and the x86-64 baseline (SSE2).
+// `#pragma GCC target` rather than target_clones: GCC 12 lowers the vector code of a clone's
+// inlined helpers for the baseline before cloning (measured: every comparison became 16 scalar
+// ones). Everything the kernel defines is in its own namespace and internal, so no function
+// compiled for AVX-512 can stand in for a baseline one at link time.
+using Lane = DiffuseLanes::Arrays::Lane;
+using Lane3 = DiffuseLanes::Arrays::Lane3;
+#pragma GCC push_options
+#pragma GCC target("arch=x86-64-v4")
+namespace avx512 {
+#define GDMLT_LANES_ISA 512
+#include "core/path/diffuse_lanes_kernel.inc"
+#undef GDMLT_LANES_ISA
+}  // namespace avx512
+#pragma GCC pop_options
+#pragma GCC push_options
+#pragma GCC target("arch=x86-64-v3")
+namespace avx2 {
+#define GDMLT_LANES_ISA 256
+#include "core/path/diffuse_lanes_kernel.inc"
+#undef GDMLT_LANES_ISA
+}  // namespace avx2
+#pragma GCC pop_options
+namespace baseline {
+#define GDMLT_LANES_ISA 128
+#include "core/path/diffuse_lanes_kernel.inc"
+#undef GDMLT_LANES_ISA
+}  // namespace baseline
+
+Vec3f column(const DiffuseLanes::Arrays::Lane3& v, std::size_t i) {
+    return {v[0][i], v[1][i], v[2][i]};
+}
+void set(DiffuseLanes::Arrays::Lane3& v, std::size_t i, const Vec3f& x) {
+    v[0][i] = x.x();
+    v[1][i] = x.y();
+    v[2][i] = x.z();
+}
+void set(DiffuseLanes::Arrays::Lane3& v, std::size_t i, const Rgb& x) {
+    v[0][i] = x[0];
+    v[1][i] = x[1];
+    v[2][i] = x[2];
+}
+
+}  // namespace
+
+DiffuseLanes::DiffuseLanes(const Scene& scene) : scene_(&scene), arrays_(1) {
+    const auto constant_diffuse = [](const BsdfModel& m, Rgb& albedo) {
+        const auto* d = std::get_if<DiffuseBsdf>(&m);
+        if (!d || !d->reflectance.is_constant()) return false;
+        albedo = d->reflectance.eval(Vec2f::Zero());
+        return is_finite(albedo);
+    };
+    for (const Bsdf& bsdf : scene.bsdfs()) {
+        Diffuse d;
+        d.two_sided = bsdf.is_two_sided();
+        d.handled = constant_diffuse(bsdf.front(), d.front);
+        d.back = d.front;
+        if (bsdf.back()) d.handled = d.handled && constant_diffuse(*bsdf.back(), d.back);
+        diffuse_.push_back(d);
+    }
+}
+
+void DiffuseLanes::push(std::uint32_t id, const SurfaceInteraction& si, const VertexNumbers& u,
+                        const PathState& state, const PathSamplerSettings& settings) {
+    Arrays& a = arrays_.front();
+    const std::size_t i = count_++;
+    ids_[i] = id;
+    const Diffuse& d = diffuse_[static_cast<std::size_t>(
+        scene_->shapes()[static_cast<std::size_t>(si.shape)].bsdf())];
+    const Vec3f wo_world = -state.ray.direction;
+    // Bsdf::model_for: a two-sided surface seen from behind is the back model, mirrored.
+    const float cos_wo = wo_world.dot(si.shading.n);
+    const bool flipped = d.two_sided && cos_wo < 0.f;
+    set(a.p, i, si.p);
+    set(a.n_geometric, i, si.n_geometric);
+    set(a.frame_s, i, si.shading.s);
+    set(a.frame_t, i, si.shading.t);
+    set(a.frame_n, i, si.shading.n);
+    a.side_wo[i] = si.n_geometric.dot(wo_world);
+    a.flip[i] = flipped ? -1.f : 1.f;
+    a.wo_z[i] = flipped ? -cos_wo : cos_wo;
+    set(a.albedo, i, flipped ? d.back : d.front);
+    set(a.throughput, i, state.throughput);
+    a.eta_product[i] = state.eta_product;
+    a.u_bsdf_x[i] = u.bsdf.x();
+    a.u_bsdf_y[i] = u.bsdf.y();
+    a.u_roulette[i] = u.roulette;
+    a.roulette[i] = state.depth + 1 >= settings.rr_depth ? 1.f : 0.f;
+
+    a.nee_mode[i] = 0.f;
+    if (state.depth + 2 < settings.min_depth) return;
+    Scene::EmitterTriangle triangle;
+    if (scene_->emitter_triangle(u.emitter_choice, triangle)) {
+        a.nee_mode[i] = 1.f;
+        set(a.light_a, i, triangle.a);
+        set(a.light_b, i, triangle.b);
+        set(a.light_c, i, triangle.c);
+        set(a.light_n, i, triangle.n_geometric);
+        set(a.light_radiance, i, triangle.radiance);
+        a.u_light_x[i] = u.emitter.x();
+        a.u_light_y[i] = u.emitter.y();
+        a.light_pmf[i] = triangle.pmf;
+        a.light_area[i] = triangle.area;
+        return;
+    }
+    // Any other emitter: finish_vertex's own code, here, once per lane.
+    if (sample_next_event(*scene_, si, si.shading.to_local(wo_world), u, state.throughput,
+                          given_[i]))
+        a.nee_mode[i] = 2.f;
+}
+
+DiffuseLanes::Isa DiffuseLanes::best_isa() {
+    static const Isa best = [] {
+        __builtin_cpu_init();
+        if (__builtin_cpu_supports("x86-64-v4")) return Isa::Avx512;
+        if (__builtin_cpu_supports("x86-64-v3")) return Isa::Avx2;
+        return Isa::Baseline;
+    }();
+    return best;
+}
+
+void DiffuseLanes::run(Isa isa) {
+    switch (isa) {
+        case Isa::Avx512:
+            avx512::diffuse_vertices(arrays_.front(), count_);
+            break;
+        case Isa::Avx2:
+            avx2::diffuse_vertices(arrays_.front(), count_);
+            break;
+        case Isa::Baseline:
+            baseline::diffuse_vertices(arrays_.front(), count_);
+            break;
+    }
+}
+
+void DiffuseLanes::finish(std::size_t i, PathState& state, NextEventRay& next_event,
+                          PathCounters& counters) const {
+    const Arrays& a = arrays_.front();
+    if (a.nee_mode[i] == 2.f) {
+        next_event = given_[i];
+    } else {
+        next_event.requested = a.nee_requested[i] != 0.f;
+        if (next_event.requested) {
+            next_event.shadow =
+                Ray{column(a.shadow_origin, i), column(a.shadow_direction, i), a.shadow_t_max[i]};
+            next_event.contribution =
+                Rgb(a.contribution[0][i], a.contribution[1][i], a.contribution[2][i]);
+        }
+    }
+    if (next_event.requested) ++counters.shadow_rays;
+    state.active = a.active[i] != 0.f;
+    if (!state.active) return;
+    state.throughput = Rgb(a.throughput[0][i], a.throughput[1][i], a.throughput[2][i]);
+    state.prev_pdf_bsdf = a.pdf_bsdf[i];
+    state.prev_delta = false;
+    state.prev_p = column(a.p, i);
+    state.ray = Ray{column(a.ray_origin, i), column(a.ray_direction, i), kInfinity};
+    ++state.depth;
+    ++counters.bounce_rays;
+}
+
+}  // namespace gdmlt

@@ -1,0 +1,112 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+// The path tracer's vertex on diffuse surfaces, for many paths at once in structure-of-arrays
+// form, computed with SIMD instructions: 16 lanes per instruction with AVX-512, 8 with AVX2, 4
+// with SSE2, the widest the processor has (chosen at run time).
+//
+// Why: the one-path estimator (finish_vertex) is straight-line scalar float arithmetic, about
+// 1,000 instructions per diffuse vertex once BSDF dispatch and emitter sampling are counted,
+// several times Embree's own work per ray; Mitsuba 3 runs the same arithmetic 16 lanes per
+// instruction (a JIT-compiled wavefront). Lanes here are the wavefront's paths whose vertex is
+// on a constant-reflectance diffuse surface, the most common vertex; every other vertex goes
+// through finish_vertex. A lane's next-event estimation is computed in the lanes when the
+// emitter chosen is a constant-radiance area light on a mesh (the choice of emitter and triangle
+// is made per lane, Scene::emitter_triangle) and by finish_vertex's own code
+// (sample_next_event) otherwise.
+//
+// The result is finish_vertex's, bit for bit: the kernel (diffuse_lanes_kernel.inc) performs
+// the same IEEE operations in the same order, without fused multiply-adds, and the concentric
+// map's sine and cosine are one polynomial shared with the scalar code
+// (warp::sincos_quarter_pi). tests/core/test_diffuse_lanes.cpp checks it vertex by vertex on
+// every instruction set the processor has.
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "core/path/path_sampler.h"
+
+namespace gdmlt {
+
+class DiffuseLanes {
+  public:
+    /// Most lanes run() takes at once (the wavefront's batch).
+    static constexpr std::size_t kCapacity = 256;
+
+    explicit DiffuseLanes(const Scene& scene);
+
+    /// Whether the vertex `si` (valid) is one these lanes compute: its BSDF is diffuse with a
+    /// constant reflectance on both sides it has.
+    bool handles(const SurfaceInteraction& si) const {
+        return diffuse_[static_cast<std::size_t>(
+                            scene_->shapes()[static_cast<std::size_t>(si.shape)].bsdf())]
+            .handled;
+    }
+
+    /// Queues the vertex `si` of a path after begin_vertex returned true for it; `id` is the
+    /// caller's name for the path. At most kCapacity vertices between two clear()s.
+    void push(std::uint32_t id, const SurfaceInteraction& si, const VertexNumbers& u,
+              const PathState& state, const PathSamplerSettings& settings);
+    /// Instruction sets the kernel is built for; every one gives the same bits (IEEE operations
+    /// lane by lane, no fused multiply-adds).
+    enum class Isa { Baseline, Avx2, Avx512 };
+    /// The widest one this processor has.
+    static Isa best_isa();
+    /// Computes every queued vertex.
+    void run(Isa isa = best_isa());
+    /// The result for the i-th queued vertex, as finish_vertex would leave `state`,
+    /// `next_event` and `counters`.
+    void finish(std::size_t i, PathState& state, NextEventRay& next_event,
+                PathCounters& counters) const;
+
+    bool is_for(const Scene& scene) const { return scene_ == &scene; }
+    std::size_t size() const { return count_; }
+    std::uint32_t id(std::size_t i) const { return ids_[i]; }
+    void clear() { count_ = 0; }
+
+    /// Structure of arrays, one entry per queued vertex; public for the kernel only.
+    struct Arrays {
+        using Lane = std::array<float, kCapacity>;
+        using Lane3 = std::array<Lane, 3>;
+        // The vertex.
+        Lane3 p, n_geometric, frame_s, frame_t, frame_n;
+        Lane side_wo;      // n_geometric . wo, wo towards where the path came from
+        Lane wo_z;         // wo's cosine with the shading normal, after the two-sided flip
+        Lane flip;         // -1 where a two-sided surface is seen from behind, else 1
+        Lane3 albedo;      // reflectance of the side seen
+        Lane3 throughput;  // before this vertex
+        Lane eta_product;  // state.eta_product, for Russian roulette
+        Lane u_bsdf_x, u_bsdf_y, u_roulette;
+        Lane roulette;  // 1 where Russian roulette applies at this vertex
+        // Next-event estimation: mode 0 none, 1 a triangle of a mesh emitter (sampled here),
+        // 2 any other emitter (computed in push() by sample_next_event, the scalar code).
+        Lane nee_mode;
+        Lane3 light_a, light_b, light_c, light_n;  // mode 1: the triangle and its normal
+        Lane u_light_x, u_light_y, light_pmf, light_area;
+        Lane3 light_radiance;
+        // Outputs (floats, 0 or 1 for yes/no: one lane width throughout lets every decision
+        // be a vector mask). Shadow ray, its contribution when unblocked, whether it is traced.
+        Lane3 shadow_origin, shadow_direction;
+        Lane shadow_t_max;
+        Lane3 contribution;
+        Lane nee_requested;
+        // The continuation: ray, throughput (in place), BSDF density, whether the path goes on.
+        Lane3 ray_origin, ray_direction;
+        Lane pdf_bsdf;
+        Lane active;
+    };
+
+  private:
+    struct Diffuse {
+        bool handled = false;
+        bool two_sided = false;
+        Rgb front = Rgb::Zero(), back = Rgb::Zero();
+    };
+    const Scene* scene_;
+    std::vector<Diffuse> diffuse_;  // per BSDF of the scene
+    std::size_t count_ = 0;
+    std::array<std::uint32_t, kCapacity> ids_{};
+    std::array<NextEventRay, kCapacity> given_{};  // next-event estimation of mode 2 lanes
+    std::vector<Arrays> arrays_;                   // one element: 100 KB, kept off the stack
+};
+
+}  // namespace gdmlt
