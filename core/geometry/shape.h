@@ -60,6 +60,8 @@ class Shape {
     /// Differential geometry at surface parameters (the manifold walk's move along a surface).
     SurfaceInteraction interaction_at(std::uint32_t primitive, const Vec2f& surface_param) const;
 
+    /// Unit face normal of mesh triangle `triangle` (flip_normals applied; zero if degenerate).
+    const Vec3f& triangle_normal(std::uint32_t triangle) const { return face_normals_[triangle]; }
     /// A mesh's triangle chosen by area with `u_primitive`, as sample_area chooses it: its
     /// corners and unit face normal (null pointers for a sphere or a mesh without area).
     struct AreaTriangle {

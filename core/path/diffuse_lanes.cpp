@@ -70,28 +70,17 @@ DiffuseLanes::DiffuseLanes(const Scene& scene) : scene_(&scene), arrays_(1) {
         if (bsdf.back()) d.handled = d.handled && constant_diffuse(*bsdf.back(), d.back);
         diffuse_.push_back(d);
     }
+    for (const Shape& shape : scene.shapes()) {
+        const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry());
+        from_hit_.push_back(mesh && mesh->normals.empty() && shape.emitter() < 0 &&
+                            diffuse_[static_cast<std::size_t>(shape.bsdf())].handled);
+    }
 }
 
-void DiffuseLanes::push(std::uint32_t id, const SurfaceInteraction& si, const VertexNumbers& u,
-                        const PathState& state, const PathSamplerSettings& settings) {
+template <class Interaction>
+void DiffuseLanes::push_path(std::size_t i, const VertexNumbers& u, const PathState& state,
+                             const PathSamplerSettings& settings, const Interaction& interaction) {
     Arrays& a = arrays_.front();
-    const std::size_t i = count_++;
-    ids_[i] = id;
-    const Diffuse& d = diffuse_[static_cast<std::size_t>(
-        scene_->shapes()[static_cast<std::size_t>(si.shape)].bsdf())];
-    const Vec3f wo_world = -state.ray.direction;
-    // Bsdf::model_for: a two-sided surface seen from behind is the back model, mirrored.
-    const float cos_wo = wo_world.dot(si.shading.n);
-    const bool flipped = d.two_sided && cos_wo < 0.f;
-    set(a.p, i, si.p);
-    set(a.n_geometric, i, si.n_geometric);
-    set(a.frame_s, i, si.shading.s);
-    set(a.frame_t, i, si.shading.t);
-    set(a.frame_n, i, si.shading.n);
-    a.side_wo[i] = si.n_geometric.dot(wo_world);
-    a.flip[i] = flipped ? -1.f : 1.f;
-    a.wo_z[i] = flipped ? -cos_wo : cos_wo;
-    set(a.albedo, i, flipped ? d.back : d.front);
     set(a.throughput, i, state.throughput);
     a.eta_product[i] = state.eta_product;
     a.u_bsdf_x[i] = u.bsdf.x();
@@ -116,9 +105,57 @@ void DiffuseLanes::push(std::uint32_t id, const SurfaceInteraction& si, const Ve
         return;
     }
     // Any other emitter: finish_vertex's own code, here, once per lane.
-    if (sample_next_event(*scene_, si, si.shading.to_local(wo_world), u, state.throughput,
-                          given_[i]))
+    const SurfaceInteraction& si = interaction();
+    if (sample_next_event(*scene_, si, si.shading.to_local(-state.ray.direction), u,
+                          state.throughput, given_[i]))
         a.nee_mode[i] = 2.f;
+}
+
+void DiffuseLanes::push(std::uint32_t id, const SurfaceInteraction& si, const VertexNumbers& u,
+                        const PathState& state, const PathSamplerSettings& settings) {
+    Arrays& a = arrays_.front();
+    const std::size_t i = count_++;
+    ids_[i] = id;
+    const Diffuse& d = diffuse_[static_cast<std::size_t>(
+        scene_->shapes()[static_cast<std::size_t>(si.shape)].bsdf())];
+    const Vec3f wo_world = -state.ray.direction;
+    // Bsdf::model_for: a two-sided surface seen from behind is the back model, mirrored.
+    const float cos_wo = wo_world.dot(si.shading.n);
+    const bool flipped = d.two_sided && cos_wo < 0.f;
+    a.from_hit[i] = 0.f;
+    set(a.p, i, si.p);
+    set(a.n_geometric, i, si.n_geometric);
+    set(a.frame_s, i, si.shading.s);
+    set(a.frame_t, i, si.shading.t);
+    set(a.frame_n, i, si.shading.n);
+    a.side_wo[i] = si.n_geometric.dot(wo_world);
+    a.flip[i] = flipped ? -1.f : 1.f;
+    a.wo_z[i] = flipped ? -cos_wo : cos_wo;
+    set(a.albedo, i, flipped ? d.back : d.front);
+    push_path(i, u, state, settings, [&]() -> const SurfaceInteraction& { return si; });
+}
+
+void DiffuseLanes::push_hit(std::uint32_t id, const RayHit& hit, const VertexNumbers& u,
+                            const PathState& state, const PathSamplerSettings& settings) {
+    Arrays& a = arrays_.front();
+    const std::size_t i = count_++;
+    ids_[i] = id;
+    const Shape& shape = scene_->shapes()[static_cast<std::size_t>(hit.shape)];
+    const auto& mesh = std::get<TriangleMesh>(shape.geometry());
+    const std::uint32_t* index = &mesh.indices[3 * static_cast<std::size_t>(hit.primitive)];
+    const Diffuse& d = diffuse_[static_cast<std::size_t>(shape.bsdf())];
+    a.from_hit[i] = 1.f;
+    set(a.corner0, i, mesh.positions[index[0]]);
+    set(a.corner1, i, mesh.positions[index[1]]);
+    set(a.corner2, i, mesh.positions[index[2]]);
+    set(a.n_geometric, i, shape.triangle_normal(hit.primitive));
+    a.bary_u[i] = hit.barycentric.x();
+    a.bary_v[i] = hit.barycentric.y();
+    set(a.wo_world, i, Vec3f(-state.ray.direction));
+    a.two_sided[i] = d.two_sided ? 1.f : 0.f;
+    set(a.albedo, i, d.front);
+    set(a.albedo_back, i, d.back);
+    push_path(i, u, state, settings, [&] { return scene_->interaction(state.ray, hit); });
 }
 
 DiffuseLanes::Isa DiffuseLanes::best_isa() {

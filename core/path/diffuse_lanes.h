@@ -23,6 +23,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/accel/accelerator.h"
 #include "core/path/path_sampler.h"
 
 namespace gdmlt {
@@ -42,10 +43,23 @@ class DiffuseLanes {
             .handled;
     }
 
+    /// Whether hits on shape `shape` can be queued with push_hit, without a SurfaceInteraction:
+    /// handled BSDF, a triangle mesh without vertex normals (the shading frame is the face's,
+    /// built in the lanes) and no emitter (nothing to add where the path arrives).
+    bool handles_hit(std::int32_t shape) const {
+        return from_hit_[static_cast<std::size_t>(shape)];
+    }
+
     /// Queues the vertex `si` of a path after begin_vertex returned true for it; `id` is the
     /// caller's name for the path. At most kCapacity vertices between two clear()s.
     void push(std::uint32_t id, const SurfaceInteraction& si, const VertexNumbers& u,
               const PathState& state, const PathSamplerSettings& settings);
+    /// The same for the vertex `hit` found by state.ray on a shape handles_hit accepts, after
+    /// begin_vertex_without_emission returned true: the lanes rebuild what Shape::interaction
+    /// gives (the point from the barycentrics, Frame::from_normal_and_tangent), saving the
+    /// 136-byte SurfaceInteraction per hit.
+    void push_hit(std::uint32_t id, const RayHit& hit, const VertexNumbers& u,
+                  const PathState& state, const PathSamplerSettings& settings);
     /// Instruction sets the kernel is built for; every one gives the same bits (IEEE operations
     /// lane by lane, no fused multiply-adds).
     enum class Isa { Baseline, Avx2, Avx512 };
@@ -67,12 +81,21 @@ class DiffuseLanes {
     struct Arrays {
         using Lane = std::array<float, kCapacity>;
         using Lane3 = std::array<Lane, 3>;
+        // A vertex queued by push_hit (from_hit 1): its triangle, barycentrics, direction
+        // towards where the path came from, and both sides' reflectance; the kernel derives
+        // the fields below from them.
+        Lane from_hit;
+        Lane3 corner0, corner1, corner2;
+        Lane bary_u, bary_v;
+        Lane3 wo_world;
+        Lane two_sided;
+        Lane3 albedo_back;
         // The vertex.
         Lane3 p, n_geometric, frame_s, frame_t, frame_n;
         Lane side_wo;      // n_geometric . wo, wo towards where the path came from
         Lane wo_z;         // wo's cosine with the shading normal, after the two-sided flip
         Lane flip;         // -1 where a two-sided surface is seen from behind, else 1
-        Lane3 albedo;      // reflectance of the side seen
+        Lane3 albedo;      // reflectance of the side seen (push_hit: of the front)
         Lane3 throughput;  // before this vertex
         Lane eta_product;  // state.eta_product, for Russian roulette
         Lane u_bsdf_x, u_bsdf_y, u_roulette;
@@ -101,8 +124,16 @@ class DiffuseLanes {
         bool two_sided = false;
         Rgb front = Rgb::Zero(), back = Rgb::Zero();
     };
+    /// What push and push_hit share: the path's state and numbers, next-event estimation
+    /// (`interaction` gives the vertex's SurfaceInteraction when the emitter needs the scalar
+    /// code).
+    template <class Interaction>
+    void push_path(std::size_t i, const VertexNumbers& u, const PathState& state,
+                   const PathSamplerSettings& settings, const Interaction& interaction);
+
     const Scene* scene_;
     std::vector<Diffuse> diffuse_;  // per BSDF of the scene
+    std::vector<bool> from_hit_;    // per shape: handles_hit
     std::size_t count_ = 0;
     std::array<std::uint32_t, kCapacity> ids_{};
     std::array<NextEventRay, kCapacity> given_{};  // next-event estimation of mode 2 lanes

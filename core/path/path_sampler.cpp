@@ -8,16 +8,27 @@ namespace {
 /// that the path tracer's IndependentStream (a final class) is inlined: seven virtual calls per
 /// bounce otherwise cost about as much as the PCG itself.
 template <class Stream>
-bool vertex_begin(const Scene& scene, const SurfaceInteraction& si, Stream& stream,
-                  const PathSamplerSettings& settings, PathState& state, VertexNumbers& u) {
-    const int depth = state.depth;
-    const Ray& ray = state.ray;
+void draw_vertex_numbers(Stream& stream, VertexNumbers& u) {
     // Every bounce draws its fixed block of dimensions up front, used or not.
     u.emitter_choice = stream.next_1d();
     u.emitter = stream.next_2d();
     u.lobe = stream.next_1d();
     u.bsdf = stream.next_2d();
     u.roulette = stream.next_1d();
+}
+
+/// Whether a vertex at state.depth may have a successor: one more would make the path longer
+/// than max_depth segments.
+bool below_max_depth(const PathSamplerSettings& settings, const PathState& state) {
+    return !(settings.max_depth >= 0 && state.depth + 1 >= settings.max_depth);
+}
+
+template <class Stream>
+bool vertex_begin(const Scene& scene, const SurfaceInteraction& si, Stream& stream,
+                  const PathSamplerSettings& settings, PathState& state, VertexNumbers& u) {
+    const int depth = state.depth;
+    const Ray& ray = state.ray;
+    draw_vertex_numbers(stream, u);
     state.active = false;  // until a continuation ray is found
     // An emitter hit here ends a path of depth + 1 segments, next-event estimation from
     // here one of depth + 2.
@@ -46,8 +57,7 @@ bool vertex_begin(const Scene& scene, const SurfaceInteraction& si, Stream& stre
         }
     }
 
-    // A further vertex would make the path longer than max_depth segments.
-    return !(settings.max_depth >= 0 && depth + 1 >= settings.max_depth);
+    return below_max_depth(settings, state);
 }
 
 /// One vertex of the estimator. The one-path loop (trace_path) and the many-path driver
@@ -144,6 +154,13 @@ void finish_vertex(const Scene& scene, const SurfaceInteraction& si, const Verte
 bool begin_vertex(const Scene& scene, const SurfaceInteraction& si, IndependentStream& stream,
                   const PathSamplerSettings& settings, PathState& state, VertexNumbers& u) {
     return vertex_begin(scene, si, stream, settings, state, u);
+}
+
+bool begin_vertex_without_emission(IndependentStream& stream, const PathSamplerSettings& settings,
+                                   PathState& state, VertexNumbers& u) {
+    draw_vertex_numbers(stream, u);
+    state.active = false;
+    return below_max_depth(settings, state);
 }
 
 PathState start_path(const Ray& camera_ray, PathCounters& counters) {

@@ -121,6 +121,10 @@ bool begin_vertex(const Scene& scene, const SurfaceInteraction& si, IndependentS
 void finish_vertex(const Scene& scene, const SurfaceInteraction& si, const VertexNumbers& u,
                    const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
                    NextEventRay& next_event);
+/// begin_vertex for a valid hit on a shape that has no emitter (there is nothing to add), for
+/// drivers that do not build the SurfaceInteraction (DiffuseLanes::push_hit).
+bool begin_vertex_without_emission(IndependentStream& stream, const PathSamplerSettings& settings,
+                                   PathState& state, VertexNumbers& u);
 
 /// finish_vertex's next-event estimation at `si` (wo: local direction the path came from): an
 /// emitter sample, and when the BSDF does not vanish towards it, the shadow ray for the caller

@@ -105,8 +105,15 @@ struct Wavefront {
                 scene.intersect_packet(std::span(rays.data(), count), hits, camera_rays);
                 for (std::size_t k = 0; k < count; ++k) {
                     WavefrontLane& lane = lanes[active[first + k]];
-                    const SurfaceInteraction si = scene.interaction(rays[k], hits[k]);
                     VertexNumbers u;
+                    // The most common vertex, a flat diffuse surface that does not emit, goes
+                    // to the lanes without a SurfaceInteraction.
+                    if (hits[k].valid() && diffuse->handles_hit(hits[k].shape)) {
+                        if (begin_vertex_without_emission(lane.stream, path, lane.state, u))
+                            diffuse->push_hit(active[first + k], hits[k], u, lane.state, path);
+                        continue;
+                    }
+                    const SurfaceInteraction si = scene.interaction(rays[k], hits[k]);
                     if (!begin_vertex(scene, si, lane.stream, path, lane.state, u)) continue;
                     if (diffuse->handles(si)) {
                         diffuse->push(active[first + k], si, u, lane.state, path);

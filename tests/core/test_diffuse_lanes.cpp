@@ -6,6 +6,7 @@
 
 #include <bit>
 #include <cstring>
+#include <span>
 #include <vector>
 
 #include "core/path/diffuse_lanes.h"
@@ -16,6 +17,7 @@ namespace {
 
 /// A vertex finish_vertex was run on, with what it left.
 struct Reference {
+    RayHit hit;
     SurfaceInteraction si;
     VertexNumbers u;
     PathState before, after;
@@ -48,8 +50,9 @@ std::vector<Reference> diffuse_vertices(const Scene& scene, const DiffuseLanes& 
         PathCounters counters;
         PathState state = start_path(scene.camera().generate_ray(film_position), counters);
         while (state.active && out.size() < wanted) {
-            const SurfaceInteraction si = scene.intersect(state.ray);
             Reference r;
+            scene.intersect_packet(std::span(&state.ray, 1), std::span(&r.hit, 1));
+            const SurfaceInteraction si = scene.interaction(state.ray, r.hit);
             r.si = si;
             if (!begin_vertex(scene, si, stream, settings, state, r.u)) break;
             r.before = state;
@@ -64,10 +67,12 @@ std::vector<Reference> diffuse_vertices(const Scene& scene, const DiffuseLanes& 
 /// What the test saw, so that it cannot pass on vertices that never take a branch.
 struct Coverage {
     int shadow_rays = 0, no_shadow_ray = 0, continued = 0, ended = 0, seen_from_behind = 0,
-        shadow_to_infinity = 0;
+        shadow_to_infinity = 0, from_hit = 0, from_interaction = 0;
 };
 
 /// Runs `references` through DiffuseLanes with `isa`, 256 at a time, and checks every output.
+/// Vertices go in through push_hit where the shape allows it (DiffuseLanes::handles_hit), except
+/// every third, which goes through push (the SurfaceInteraction) so that both are compared.
 void expect_same_as_finish_vertex(const Scene& scene, const PathSamplerSettings& settings,
                                   const std::vector<Reference>& references, DiffuseLanes::Isa isa,
                                   Coverage& seen) {
@@ -77,7 +82,13 @@ void expect_same_as_finish_vertex(const Scene& scene, const PathSamplerSettings&
         lanes.clear();
         for (std::size_t k = 0; k < count; ++k) {
             const Reference& r = references[first + k];
-            lanes.push(static_cast<std::uint32_t>(k), r.si, r.u, r.before, settings);
+            if (lanes.handles_hit(r.hit.shape) && (first + k) % 3 != 0) {
+                lanes.push_hit(static_cast<std::uint32_t>(k), r.hit, r.u, r.before, settings);
+                ++seen.from_hit;
+            } else {
+                lanes.push(static_cast<std::uint32_t>(k), r.si, r.u, r.before, settings);
+                ++seen.from_interaction;
+            }
         }
         lanes.run(isa);
         ASSERT_EQ(lanes.size(), count);
@@ -155,6 +166,8 @@ TEST(DiffuseLanes, CornellBoxVerticesAreFinishVertexBitForBit) {
         EXPECT_GT(seen.no_shadow_ray, 50);  // light behind the vertex, or the back of the light
         EXPECT_GT(seen.continued, 500);
         EXPECT_GT(seen.ended, 100);  // Russian roulette
+        EXPECT_GT(seen.from_hit, 1000);
+        EXPECT_GT(seen.from_interaction, 600);
     }
 }
 
@@ -188,6 +201,8 @@ TEST(DiffuseLanes, TwoSidedSurfacesAndOtherEmittersAreFinishVertexBitForBit) {
         EXPECT_GT(seen.seen_from_behind, 20);  // the sheet's back (38 vertices from seed 5)
         EXPECT_GT(seen.continued, 500);
         EXPECT_GT(seen.ended, 50);
+        EXPECT_GT(seen.from_hit, 1000);
+        EXPECT_GT(seen.from_interaction, 600);
     }
 }
 
