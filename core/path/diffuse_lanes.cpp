@@ -158,25 +158,15 @@ void DiffuseLanes::push_hit(std::uint32_t id, const RayHit& hit, const VertexNum
     push_path(i, u, state, settings, [&] { return scene_->interaction(state.ray, hit); });
 }
 
-DiffuseLanes::Isa DiffuseLanes::best_isa() {
-    static const Isa best = [] {
-        __builtin_cpu_init();
-        if (__builtin_cpu_supports("x86-64-v4")) return Isa::Avx512;
-        if (__builtin_cpu_supports("x86-64-v3")) return Isa::Avx2;
-        return Isa::Baseline;
-    }();
-    return best;
-}
-
-void DiffuseLanes::run(Isa isa) {
+void DiffuseLanes::run(SimdIsa isa) {
     switch (isa) {
-        case Isa::Avx512:
+        case SimdIsa::Avx512:
             avx512::diffuse_vertices(arrays_.front(), count_);
             break;
-        case Isa::Avx2:
+        case SimdIsa::Avx2:
             avx2::diffuse_vertices(arrays_.front(), count_);
             break;
-        case Isa::Baseline:
+        case SimdIsa::Baseline:
             baseline::diffuse_vertices(arrays_.front(), count_);
             break;
     }

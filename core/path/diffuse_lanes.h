@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "core/accel/accelerator.h"
+#include "core/math/simd.h"
 #include "core/path/path_sampler.h"
 
 namespace gdmlt {
@@ -60,13 +61,8 @@ class DiffuseLanes {
     /// 136-byte SurfaceInteraction per hit.
     void push_hit(std::uint32_t id, const RayHit& hit, const VertexNumbers& u,
                   const PathState& state, const PathSamplerSettings& settings);
-    /// Instruction sets the kernel is built for; every one gives the same bits (IEEE operations
-    /// lane by lane, no fused multiply-adds).
-    enum class Isa { Baseline, Avx2, Avx512 };
-    /// The widest one this processor has.
-    static Isa best_isa();
-    /// Computes every queued vertex.
-    void run(Isa isa = best_isa());
+    /// Computes every queued vertex, with the kernel built for `isa` (core/math/simd.h).
+    void run(SimdIsa isa = best_simd_isa());
     /// The result for the i-th queued vertex, as finish_vertex would leave `state`,
     /// `next_event` and `counters`.
     void finish(std::size_t i, PathState& state, NextEventRay& next_event,

@@ -4,60 +4,25 @@
 namespace gdmlt {
 namespace {
 
-/// The first part of a vertex (see begin_vertex in the header), generic over the stream type so
-/// that the path tracer's IndependentStream (a final class) is inlined: seven virtual calls per
-/// bounce otherwise cost about as much as the PCG itself.
+/// The numbers of one vertex (see VertexNumbers), generic over the stream type so that the path
+/// tracer's IndependentStream (a final class) is inlined: seven virtual calls per bounce
+/// otherwise cost about as much as the PCG itself.
 template <class Stream>
-void draw_vertex_numbers(Stream& stream, VertexNumbers& u) {
+VertexNumbers draw_numbers(Stream& stream) {
     // Every bounce draws its fixed block of dimensions up front, used or not.
+    VertexNumbers u;
     u.emitter_choice = stream.next_1d();
     u.emitter = stream.next_2d();
     u.lobe = stream.next_1d();
     u.bsdf = stream.next_2d();
     u.roulette = stream.next_1d();
+    return u;
 }
 
 /// Whether a vertex at state.depth may have a successor: one more would make the path longer
 /// than max_depth segments.
 bool below_max_depth(const PathSamplerSettings& settings, const PathState& state) {
     return !(settings.max_depth >= 0 && state.depth + 1 >= settings.max_depth);
-}
-
-template <class Stream>
-bool vertex_begin(const Scene& scene, const SurfaceInteraction& si, Stream& stream,
-                  const PathSamplerSettings& settings, PathState& state, VertexNumbers& u) {
-    const int depth = state.depth;
-    const Ray& ray = state.ray;
-    draw_vertex_numbers(stream, u);
-    state.active = false;  // until a continuation ray is found
-    // An emitter hit here ends a path of depth + 1 segments, next-event estimation from
-    // here one of depth + 2.
-    const bool count_emission =
-        !(depth == 0 && settings.hide_emitters) && depth + 1 >= settings.min_depth;
-
-    if (!si.valid()) {
-        if (scene.has_environment() && count_emission) {
-            const float w = state.prev_delta
-                                ? 1.f
-                                : power_heuristic(state.prev_pdf_bsdf,
-                                                  scene.pdf_environment_solid_angle(ray.direction));
-            state.radiance += state.throughput * scene.environment(ray.direction) * w;
-        }
-        return false;
-    }
-
-    if (count_emission) {
-        const Rgb emitted = scene.emitted(si, -ray.direction);
-        if (!is_black(emitted)) {
-            const float w = state.prev_delta
-                                ? 1.f
-                                : power_heuristic(state.prev_pdf_bsdf,
-                                                  scene.pdf_emitter_solid_angle(state.prev_p, si));
-            state.radiance += state.throughput * emitted * w;
-        }
-    }
-
-    return below_max_depth(settings, state);
 }
 
 /// One vertex of the estimator. The one-path loop (trace_path) and the many-path driver
@@ -67,8 +32,8 @@ void path_vertex(const Scene& scene, const SurfaceInteraction& si, Stream& strea
                  const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
                  NextEventRay& next_event) {
     next_event.requested = false;
-    VertexNumbers u;
-    if (vertex_begin(scene, si, stream, settings, state, u))
+    const VertexNumbers u = draw_numbers(stream);
+    if (begin_vertex(scene, si, settings, state))
         finish_vertex(scene, si, u, settings, counters, state, next_event);
 }
 
@@ -151,14 +116,45 @@ void finish_vertex(const Scene& scene, const SurfaceInteraction& si, const Verte
     ++counters.bounce_rays;
 }
 
-bool begin_vertex(const Scene& scene, const SurfaceInteraction& si, IndependentStream& stream,
-                  const PathSamplerSettings& settings, PathState& state, VertexNumbers& u) {
-    return vertex_begin(scene, si, stream, settings, state, u);
+VertexNumbers draw_vertex_numbers(IndependentStream& stream) {
+    return draw_numbers(stream);
 }
 
-bool begin_vertex_without_emission(IndependentStream& stream, const PathSamplerSettings& settings,
-                                   PathState& state, VertexNumbers& u) {
-    draw_vertex_numbers(stream, u);
+bool begin_vertex(const Scene& scene, const SurfaceInteraction& si,
+                  const PathSamplerSettings& settings, PathState& state) {
+    const int depth = state.depth;
+    const Ray& ray = state.ray;
+    state.active = false;  // until a continuation ray is found
+    // An emitter hit here ends a path of depth + 1 segments, next-event estimation from
+    // here one of depth + 2.
+    const bool count_emission =
+        !(depth == 0 && settings.hide_emitters) && depth + 1 >= settings.min_depth;
+
+    if (!si.valid()) {
+        if (scene.has_environment() && count_emission) {
+            const float w = state.prev_delta
+                                ? 1.f
+                                : power_heuristic(state.prev_pdf_bsdf,
+                                                  scene.pdf_environment_solid_angle(ray.direction));
+            state.radiance += state.throughput * scene.environment(ray.direction) * w;
+        }
+        return false;
+    }
+
+    if (count_emission) {
+        const Rgb emitted = scene.emitted(si, -ray.direction);
+        if (!is_black(emitted)) {
+            const float w = state.prev_delta
+                                ? 1.f
+                                : power_heuristic(state.prev_pdf_bsdf,
+                                                  scene.pdf_emitter_solid_angle(state.prev_p, si));
+            state.radiance += state.throughput * emitted * w;
+        }
+    }
+    return below_max_depth(settings, state);
+}
+
+bool begin_vertex_without_emission(const PathSamplerSettings& settings, PathState& state) {
     state.active = false;
     return below_max_depth(settings, state);
 }

@@ -110,21 +110,26 @@ void continue_path(const Scene& scene, const SurfaceInteraction& si, Independent
                    const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
                    NextEventRay& next_event);
 
-/// continue_path in two parts, for drivers that finish some vertices another way (the
-/// wavefront's vectorised diffuse vertices, core/path/diffuse_lanes.h). begin_vertex draws the
-/// vertex's numbers into `u`, adds what an emitter hit (or the environment, on a miss) gives,
-/// and returns whether the path goes on from `si` (false: state.active is false and the
-/// vertex is done). finish_vertex does the rest: next-event estimation, BSDF sampling and
-/// Russian roulette. continue_path is begin_vertex, then finish_vertex if it returned true.
-bool begin_vertex(const Scene& scene, const SurfaceInteraction& si, IndependentStream& stream,
-                  const PathSamplerSettings& settings, PathState& state, VertexNumbers& u);
+/// continue_path in parts, for drivers that draw the numbers or finish some vertices another
+/// way (the wavefront's SIMD streams and diffuse vertices: core/sampling/pcg_lanes.h,
+/// core/path/diffuse_lanes.h). continue_path is
+///
+///     const VertexNumbers u = draw_vertex_numbers(stream);
+///     if (begin_vertex(scene, si, settings, state))
+///         finish_vertex(scene, si, u, settings, counters, state, next_event);
+///
+/// begin_vertex adds what an emitter hit (or the environment, on a miss) gives and returns
+/// whether the path goes on from `si` (false: state.active is false and the vertex is done);
+/// finish_vertex does the rest: next-event estimation, BSDF sampling and Russian roulette.
+VertexNumbers draw_vertex_numbers(IndependentStream& stream);
+bool begin_vertex(const Scene& scene, const SurfaceInteraction& si,
+                  const PathSamplerSettings& settings, PathState& state);
 void finish_vertex(const Scene& scene, const SurfaceInteraction& si, const VertexNumbers& u,
                    const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
                    NextEventRay& next_event);
 /// begin_vertex for a valid hit on a shape that has no emitter (there is nothing to add), for
 /// drivers that do not build the SurfaceInteraction (DiffuseLanes::push_hit).
-bool begin_vertex_without_emission(IndependentStream& stream, const PathSamplerSettings& settings,
-                                   PathState& state, VertexNumbers& u);
+bool begin_vertex_without_emission(const PathSamplerSettings& settings, PathState& state);
 
 /// finish_vertex's next-event estimation at `si` (wo: local direction the path came from): an
 /// emitter sample, and when the BSDF does not vanish towards it, the shadow ray for the caller

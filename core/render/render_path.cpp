@@ -16,6 +16,7 @@
 #include "core/path/diffuse_lanes.h"
 #include "core/render/film_buffer.h"
 #include "core/render/pixel_passes.h"
+#include "core/sampling/pcg_lanes.h"
 #include "core/sampling/rng.h"
 
 namespace gdmlt {
@@ -58,24 +59,28 @@ class ProgressReporter {
 /// 120 bytes each) stays in the L1/L2 caches.
 constexpr std::size_t kWavefrontPaths = 256;
 constexpr int kPacket = Accelerator::kPacketSize;
-static_assert(kWavefrontPaths <= DiffuseLanes::kCapacity);
+static_assert(kWavefrontPaths <= DiffuseLanes::kCapacity && kWavefrontPaths <= PcgLanes::kCapacity);
+static_assert(kDimensionsPerBounce <= static_cast<int>(PcgLanes::kMaxDraws));
 
 struct WavefrontLane {
     int x = 0, y = 0;  // crop-window pixel
-    IndependentStream stream;
-    PathState state;
+    PathState state;   // its random numbers: the Wavefront's `streams`, same index
 };
 
 /// The path tracer's wavefront (Laine et al. 2013, "Megakernels considered harmful", in its
 /// simplest form): every path of a batch takes one vertex, their rays traced in packets of 16,
 /// then their shadow rays likewise. Each path's arithmetic and random numbers are those of
 /// sample_path_radiance (begin_vertex and finish_vertex, or for diffuse vertices DiffuseLanes,
-/// which computes the same in SIMD lanes), so the image is the same as tracing path after path,
-/// up to Embree's packet and single-ray kernels rounding a hit differently and DiffuseLanes'
-/// polynomial sine and cosine. Per thread, reused across tiles so that its buffers are
-/// allocated once.
+/// which computes the same in SIMD lanes; the numbers come from the same PCG streams, drawn for
+/// all paths at once by PcgLanes), so the image is the same as tracing path after path, up to
+/// Embree's packet and single-ray kernels rounding a hit differently. Per thread, reused across
+/// tiles so that its buffers are allocated once.
 struct Wavefront {
     std::vector<WavefrontLane> lanes;
+    // The random streams of the active paths, in `active`'s order (compacted with it, so that
+    // only live paths draw), and this vertex's numbers: numbers[d][j] for active[j].
+    PcgLanes streams;
+    PcgLanes::Draws numbers;
     std::optional<DiffuseLanes> diffuse;  // for the scene of the last run
     std::vector<std::uint32_t> active;    // lanes still tracing, in lane order
     struct Shadow {
@@ -98,28 +103,32 @@ struct Wavefront {
         bool camera_rays = true;
         while (!active.empty()) {
             shadows.clear();
+            // Every path draws its vertex's kDimensionsPerBounce numbers (whether it uses them
+            // or not), 8 streams per instruction with AVX-512.
+            streams.next_floats(active.size(), kDimensionsPerBounce, numbers);
             for (std::size_t first = 0; first < active.size(); first += kPacket) {
                 const std::size_t count = std::min<std::size_t>(kPacket, active.size() - first);
                 for (std::size_t k = 0; k < count; ++k)
                     rays[k] = lanes[active[first + k]].state.ray;
                 scene.intersect_packet(std::span(rays.data(), count), hits, camera_rays);
                 for (std::size_t k = 0; k < count; ++k) {
-                    WavefrontLane& lane = lanes[active[first + k]];
-                    VertexNumbers u;
+                    const std::uint32_t index = active[first + k];
+                    WavefrontLane& lane = lanes[index];
+                    const VertexNumbers u = vertex_numbers(first + k);
                     // The most common vertex, a flat diffuse surface that does not emit, goes
                     // to the lanes without a SurfaceInteraction.
                     if (hits[k].valid() && diffuse->handles_hit(hits[k].shape)) {
-                        if (begin_vertex_without_emission(lane.stream, path, lane.state, u))
-                            diffuse->push_hit(active[first + k], hits[k], u, lane.state, path);
+                        if (begin_vertex_without_emission(path, lane.state))
+                            diffuse->push_hit(index, hits[k], u, lane.state, path);
                         continue;
                     }
                     const SurfaceInteraction si = scene.interaction(rays[k], hits[k]);
-                    if (!begin_vertex(scene, si, lane.stream, path, lane.state, u)) continue;
+                    if (!begin_vertex(scene, si, path, lane.state)) continue;
                     if (diffuse->handles(si)) {
-                        diffuse->push(active[first + k], si, u, lane.state, path);
+                        diffuse->push(index, si, u, lane.state, path);
                         continue;
                     }
-                    Shadow shadow{active[first + k], {}};
+                    Shadow shadow{index, {}};
                     finish_vertex(scene, si, u, path, counters, lane.state, shadow.ray);
                     if (shadow.ray.requested) shadows.push_back(shadow);
                 }
@@ -143,9 +152,33 @@ struct Wavefront {
                         lanes[shadows[first + k].lane].state.radiance +=
                             shadows[first + k].ray.contribution;
             }
-            std::erase_if(active, [&](std::uint32_t i) { return !lanes[i].state.active; });
+            std::size_t kept = 0;
+            for (std::size_t j = 0; j < active.size(); ++j)
+                if (lanes[active[j]].state.active) {
+                    streams.move(j, kept);
+                    active[kept++] = active[j];
+                }
+            active.resize(kept);
             camera_rays = false;
         }
+    }
+
+    /// The numbers of active[j] for this vertex, in draw_vertex_numbers' order.
+    VertexNumbers vertex_numbers(std::size_t i) const {
+        VertexNumbers u;
+        u.emitter_choice = numbers[0][i];
+        u.emitter = Vec2f(numbers[1][i], numbers[2][i]);
+        u.lobe = numbers[3][i];
+        u.bsdf = Vec2f(numbers[4][i], numbers[5][i]);
+        u.roulette = numbers[6][i];
+        return u;
+    }
+
+    /// A path for pixel (x, y) of the crop window, starting with `camera_ray`, its numbers
+    /// from `stream`.
+    void add(int x, int y, const IndependentStream& stream, PathState state) {
+        streams.set(lanes.size(), stream.rng());
+        lanes.push_back(WavefrontLane{x, y, state});
     }
 
     /// Adds the finished paths to the film in batch order and empties the batch.
@@ -215,8 +248,7 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
                          ++s) {
                         PixelSample ps = pixel_sample(film, passes.seed, x, y, s);
                         const Ray ray = scene.camera().generate_ray(ps.film_position);
-                        wavefront.lanes.push_back(
-                            WavefrontLane{x, y, ps.stream, start_path(ray, tile_counters)});
+                        wavefront.add(x, y, ps.stream, start_path(ray, tile_counters));
                         if (wavefront.lanes.size() == kWavefrontPaths) {
                             wavefront.run(scene, settings.path, tile_counters);
                             wavefront.flush(buffer, tile_dropped);

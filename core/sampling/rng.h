@@ -55,6 +55,16 @@ class Pcg32 {
     }
 
     bool operator==(const Pcg32&) const = default;
+    /// The generator's state and increment, for PcgLanes (many streams advanced in SIMD lanes).
+    std::uint64_t state() const { return state_; }
+    std::uint64_t increment() const { return increment_; }
+    static constexpr std::uint64_t multiplier() { return kMultiplier; }
+    static Pcg32 from_state(std::uint64_t state, std::uint64_t increment) {
+        Pcg32 rng;
+        rng.state_ = state;
+        rng.increment_ = increment;
+        return rng;
+    }
 
   private:
     static constexpr std::uint64_t kMultiplier = 0x5851f42d4c957f2dULL;

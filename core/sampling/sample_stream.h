@@ -30,6 +30,7 @@ class IndependentStream final : public SampleStream {
   public:
     explicit IndependentStream(std::uint64_t stream_key) : rng_(stream_key, mix_bits(stream_key)) {}
     float next_1d() override { return rng_.next_float(); }
+    const Pcg32& rng() const { return rng_; }
 
   private:
     Pcg32 rng_;

@@ -54,7 +54,8 @@ std::vector<Reference> diffuse_vertices(const Scene& scene, const DiffuseLanes& 
             scene.intersect_packet(std::span(&state.ray, 1), std::span(&r.hit, 1));
             const SurfaceInteraction si = scene.interaction(state.ray, r.hit);
             r.si = si;
-            if (!begin_vertex(scene, si, stream, settings, state, r.u)) break;
+            r.u = draw_vertex_numbers(stream);
+            if (!begin_vertex(scene, si, settings, state)) break;
             r.before = state;
             finish_vertex(scene, si, r.u, settings, r.counters, state, r.next_event);
             r.after = state;
@@ -74,7 +75,7 @@ struct Coverage {
 /// Vertices go in through push_hit where the shape allows it (DiffuseLanes::handles_hit), except
 /// every third, which goes through push (the SurfaceInteraction) so that both are compared.
 void expect_same_as_finish_vertex(const Scene& scene, const PathSamplerSettings& settings,
-                                  const std::vector<Reference>& references, DiffuseLanes::Isa isa,
+                                  const std::vector<Reference>& references, SimdIsa isa,
                                   Coverage& seen) {
     DiffuseLanes lanes(scene);
     for (std::size_t first = 0; first < references.size(); first += DiffuseLanes::kCapacity) {
@@ -138,11 +139,11 @@ void expect_same_as_finish_vertex(const Scene& scene, const PathSamplerSettings&
     }
 }
 
-std::vector<DiffuseLanes::Isa> available_isas() {
-    std::vector<DiffuseLanes::Isa> isas{DiffuseLanes::Isa::Baseline};
-    const DiffuseLanes::Isa best = DiffuseLanes::best_isa();
-    if (best != DiffuseLanes::Isa::Baseline) isas.push_back(DiffuseLanes::Isa::Avx2);
-    if (best == DiffuseLanes::Isa::Avx512) isas.push_back(DiffuseLanes::Isa::Avx512);
+std::vector<SimdIsa> available_isas() {
+    std::vector<SimdIsa> isas{SimdIsa::Baseline};
+    const SimdIsa best = best_simd_isa();
+    if (best != SimdIsa::Baseline) isas.push_back(SimdIsa::Avx2);
+    if (best == SimdIsa::Avx512) isas.push_back(SimdIsa::Avx512);
     return isas;
 }
 
@@ -158,7 +159,7 @@ TEST(DiffuseLanes, CornellBoxVerticesAreFinishVertexBitForBit) {
     const DiffuseLanes lanes(scene);
     const std::vector<Reference> references = diffuse_vertices(scene, lanes, settings, 2000, 3);
     ASSERT_EQ(references.size(), 2000u);
-    for (const DiffuseLanes::Isa isa : available_isas()) {
+    for (const SimdIsa isa : available_isas()) {
         SCOPED_TRACE(testing::Message() << "instruction set " << static_cast<int>(isa));
         Coverage seen;
         expect_same_as_finish_vertex(scene, settings, references, isa, seen);
@@ -192,7 +193,7 @@ TEST(DiffuseLanes, TwoSidedSurfacesAndOtherEmittersAreFinishVertexBitForBit) {
     const DiffuseLanes lanes(scene);
     const std::vector<Reference> references = diffuse_vertices(scene, lanes, settings, 2000, 5);
     ASSERT_EQ(references.size(), 2000u);
-    for (const DiffuseLanes::Isa isa : available_isas()) {
+    for (const SimdIsa isa : available_isas()) {
         SCOPED_TRACE(testing::Message() << "instruction set " << static_cast<int>(isa));
         Coverage seen;
         expect_same_as_finish_vertex(scene, settings, references, isa, seen);
