@@ -73,7 +73,9 @@ DiffuseLanes::DiffuseLanes(const Scene& scene) : scene_(&scene), arrays_(1) {
     for (const Shape& shape : scene.shapes()) {
         const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry());
         from_hit_.push_back(mesh && mesh->normals.empty() && shape.emitter() < 0 &&
-                            diffuse_[static_cast<std::size_t>(shape.bsdf())].handled);
+                                    diffuse_[static_cast<std::size_t>(shape.bsdf())].handled
+                                ? 1
+                                : 0);
     }
 }
 

@@ -48,7 +48,7 @@ class DiffuseLanes {
     /// handled BSDF, a triangle mesh without vertex normals (the shading frame is the face's,
     /// built in the lanes) and no emitter (nothing to add where the path arrives).
     bool handles_hit(std::int32_t shape) const {
-        return from_hit_[static_cast<std::size_t>(shape)];
+        return from_hit_[static_cast<std::size_t>(shape)] != 0;
     }
 
     /// Queues the vertex `si` of a path after begin_vertex returned true for it; `id` is the
@@ -75,7 +75,11 @@ class DiffuseLanes {
 
     /// Structure of arrays, one entry per queued vertex; public for the kernel only.
     struct Arrays {
-        using Lane = std::array<float, kCapacity>;
+        // One cache line more than kCapacity floats: arrays 1 KB apart would all fall in the
+        // same 4 of the L1 cache's 64 sets (sets repeat every 4 KB), and with about 70 arrays
+        // touched per lane every access would evict another (measured: push_hit took 16% of
+        // the render's time before the padding).
+        using Lane = std::array<float, kCapacity + 16>;
         using Lane3 = std::array<Lane, 3>;
         // A vertex queued by push_hit (from_hit 1): its triangle, barycentrics, direction
         // towards where the path came from, and both sides' reflectance; the kernel derives
@@ -128,8 +132,8 @@ class DiffuseLanes {
                    const PathSamplerSettings& settings, const Interaction& interaction);
 
     const Scene* scene_;
-    std::vector<Diffuse> diffuse_;  // per BSDF of the scene
-    std::vector<bool> from_hit_;    // per shape: handles_hit
+    std::vector<Diffuse> diffuse_;        // per BSDF of the scene
+    std::vector<std::uint8_t> from_hit_;  // per shape: handles_hit (bytes: no bit masking)
     std::size_t count_ = 0;
     std::array<std::uint32_t, kCapacity> ids_{};
     std::array<NextEventRay, kCapacity> given_{};  // next-event estimation of mode 2 lanes

@@ -20,7 +20,8 @@ class PcgLanes {
   public:
     static constexpr std::size_t kCapacity = 256;
     static constexpr std::size_t kMaxDraws = 8;
-    using Draws = std::array<std::array<float, kCapacity>, kMaxDraws>;
+    /// Padded by a cache line per array, as DiffuseLanes::Arrays::Lane (L1 set conflicts).
+    using Draws = std::array<std::array<float, kCapacity + 16>, kMaxDraws>;
 
     /// Stream `i` continues from `rng`'s state.
     void set(std::size_t i, const Pcg32& rng) {

@@ -128,6 +128,27 @@ TEST(Distribution1D, ChoosesIndicesWithTheirProbabilityAndSkipsZeroWeights) {
     EXPECT_EQ(d.sample(0x1.fffffep-1f), 4u);
 }
 
+TEST(Distribution1D, AUOnABinBoundaryGoesToTheNextNonEmptyBin) {
+    // sample(u) picks the first bin whose upper CDF value exceeds u (std::upper_bound), so a u
+    // exactly on a boundary starts the next bin and empty bins are skipped. Exact binary
+    // fractions, so the CDF values are exact. Seen failing with upper_bound made lower_bound.
+    const Distribution1D quarters({1.f, 1.f, 1.f, 1.f});
+    float u_remapped = -1.f;
+    EXPECT_EQ(quarters.sample(0.f, &u_remapped), 0u);
+    EXPECT_EQ(u_remapped, 0.f);
+    EXPECT_EQ(quarters.sample(0.25f, &u_remapped), 1u);
+    EXPECT_EQ(u_remapped, 0.f);
+    EXPECT_EQ(quarters.sample(0.5f), 2u);
+    EXPECT_EQ(quarters.sample(0.75f), 3u);
+    EXPECT_EQ(quarters.sample(0.625f, &u_remapped), 2u);
+    EXPECT_EQ(u_remapped, 0.5f);
+    EXPECT_EQ(quarters.sample(0x1.fffffep-1f), 3u);
+    const Distribution1D gap({1.f, 0.f, 1.f});
+    EXPECT_EQ(gap.sample(0.5f), 2u);
+    const Distribution1D leading({0.f, 1.f, 1.f});
+    EXPECT_EQ(leading.sample(0.f), 1u);
+}
+
 TEST(Distribution1D, AllZeroWeightsGiveAnInvalidDistribution) {
     EXPECT_FALSE(Distribution1D({0.f, 0.f}).valid());
     EXPECT_FALSE(Distribution1D({std::nanf(""), -1.f}).valid());
