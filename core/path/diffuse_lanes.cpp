@@ -9,35 +9,12 @@
 namespace gdmlt {
 namespace {
 
-// The kernel, compiled three times from one source (diffuse_lanes_kernel.inc), each time for
-// one instruction set: AVX-512 (x86-64-v4), AVX2 (x86-64-v3) and the x86-64 baseline (SSE2).
-// `#pragma GCC target` rather than target_clones: GCC 12 lowers the vector code of a clone's
-// inlined helpers for the baseline before cloning (measured: every comparison became 16 scalar
-// ones). Everything the kernel defines is in its own namespace and internal, so no function
-// compiled for AVX-512 can stand in for a baseline one at link time.
+// The kernel, compiled for each instruction set of core/math/simd.h (simd_targets.inc).
 using Lane = DiffuseLanes::Arrays::Lane;
 using Lane3 = DiffuseLanes::Arrays::Lane3;
-#pragma GCC push_options
-#pragma GCC target("arch=x86-64-v4")
-namespace avx512 {
-#define GDMLT_LANES_ISA 512
-#include "core/path/diffuse_lanes_kernel.inc"
-#undef GDMLT_LANES_ISA
-}  // namespace avx512
-#pragma GCC pop_options
-#pragma GCC push_options
-#pragma GCC target("arch=x86-64-v3")
-namespace avx2 {
-#define GDMLT_LANES_ISA 256
-#include "core/path/diffuse_lanes_kernel.inc"
-#undef GDMLT_LANES_ISA
-}  // namespace avx2
-#pragma GCC pop_options
-namespace baseline {
-#define GDMLT_LANES_ISA 128
-#include "core/path/diffuse_lanes_kernel.inc"
-#undef GDMLT_LANES_ISA
-}  // namespace baseline
+#define GDMLT_SIMD_KERNEL "core/path/diffuse_lanes_kernel.inc"
+#include "core/math/simd_targets.inc"
+#undef GDMLT_SIMD_KERNEL
 
 Vec3f column(const DiffuseLanes::Arrays::Lane3& v, std::size_t i) {
     return {v[0][i], v[1][i], v[2][i]};

@@ -4,29 +4,10 @@
 namespace gdmlt {
 namespace {
 
-// The kernel compiled for each instruction set (see core/math/simd.h and the same pattern in
-// core/path/diffuse_lanes.cpp).
-#pragma GCC push_options
-#pragma GCC target("arch=x86-64-v4")
-namespace avx512 {
-#define GDMLT_LANES_ISA 512
-#include "core/sampling/pcg_lanes_kernel.inc"
-#undef GDMLT_LANES_ISA
-}  // namespace avx512
-#pragma GCC pop_options
-#pragma GCC push_options
-#pragma GCC target("arch=x86-64-v3")
-namespace avx2 {
-#define GDMLT_LANES_ISA 256
-#include "core/sampling/pcg_lanes_kernel.inc"
-#undef GDMLT_LANES_ISA
-}  // namespace avx2
-#pragma GCC pop_options
-namespace baseline {
-#define GDMLT_LANES_ISA 128
-#include "core/sampling/pcg_lanes_kernel.inc"
-#undef GDMLT_LANES_ISA
-}  // namespace baseline
+// The kernel, compiled for each instruction set of core/math/simd.h (simd_targets.inc).
+#define GDMLT_SIMD_KERNEL "core/sampling/pcg_lanes_kernel.inc"
+#include "core/math/simd_targets.inc"
+#undef GDMLT_SIMD_KERNEL
 
 }  // namespace
 

@@ -147,6 +147,19 @@ std::vector<SimdIsa> available_isas() {
     return isas;
 }
 
+/// expect_same_as_finish_vertex on every instruction set this processor has; what the vertices
+/// covered (the same on each).
+Coverage expect_same_on_every_isa(const Scene& scene, const PathSamplerSettings& settings,
+                                  const std::vector<Reference>& references) {
+    Coverage seen;
+    for (const SimdIsa isa : available_isas()) {
+        SCOPED_TRACE(testing::Message() << "instruction set " << static_cast<int>(isa));
+        seen = Coverage{};
+        expect_same_as_finish_vertex(scene, settings, references, isa, seen);
+    }
+    return seen;
+}
+
 TEST(DiffuseLanes, CornellBoxVerticesAreFinishVertexBitForBit) {
     // The box with its rectangle light (emitter samples computed in the lanes) and a glass
     // sphere (its vertices go through finish_vertex; the diffuse vertices after it carry
@@ -159,17 +172,13 @@ TEST(DiffuseLanes, CornellBoxVerticesAreFinishVertexBitForBit) {
     const DiffuseLanes lanes(scene);
     const std::vector<Reference> references = diffuse_vertices(scene, lanes, settings, 2000, 3);
     ASSERT_EQ(references.size(), 2000u);
-    for (const SimdIsa isa : available_isas()) {
-        SCOPED_TRACE(testing::Message() << "instruction set " << static_cast<int>(isa));
-        Coverage seen;
-        expect_same_as_finish_vertex(scene, settings, references, isa, seen);
-        EXPECT_GT(seen.shadow_rays, 500);
-        EXPECT_GT(seen.no_shadow_ray, 50);  // light behind the vertex, or the back of the light
-        EXPECT_GT(seen.continued, 500);
-        EXPECT_GT(seen.ended, 100);  // Russian roulette
-        EXPECT_GT(seen.from_hit, 1000);
-        EXPECT_GT(seen.from_interaction, 600);
-    }
+    const Coverage seen = expect_same_on_every_isa(scene, settings, references);
+    EXPECT_GT(seen.shadow_rays, 500);
+    EXPECT_GT(seen.no_shadow_ray, 50);  // light behind the vertex, or the back of the light
+    EXPECT_GT(seen.continued, 500);
+    EXPECT_GT(seen.ended, 100);  // Russian roulette
+    EXPECT_GT(seen.from_hit, 1000);
+    EXPECT_GT(seen.from_interaction, 600);
 }
 
 TEST(DiffuseLanes, TwoSidedSurfacesAndOtherEmittersAreFinishVertexBitForBit) {
@@ -193,18 +202,14 @@ TEST(DiffuseLanes, TwoSidedSurfacesAndOtherEmittersAreFinishVertexBitForBit) {
     const DiffuseLanes lanes(scene);
     const std::vector<Reference> references = diffuse_vertices(scene, lanes, settings, 2000, 5);
     ASSERT_EQ(references.size(), 2000u);
-    for (const SimdIsa isa : available_isas()) {
-        SCOPED_TRACE(testing::Message() << "instruction set " << static_cast<int>(isa));
-        Coverage seen;
-        expect_same_as_finish_vertex(scene, settings, references, isa, seen);
-        EXPECT_GT(seen.shadow_rays, 500);
-        EXPECT_GT(seen.shadow_to_infinity, 50);
-        EXPECT_GT(seen.seen_from_behind, 20);  // the sheet's back (38 vertices from seed 5)
-        EXPECT_GT(seen.continued, 500);
-        EXPECT_GT(seen.ended, 50);
-        EXPECT_GT(seen.from_hit, 1000);
-        EXPECT_GT(seen.from_interaction, 600);
-    }
+    const Coverage seen = expect_same_on_every_isa(scene, settings, references);
+    EXPECT_GT(seen.shadow_rays, 500);
+    EXPECT_GT(seen.shadow_to_infinity, 50);
+    EXPECT_GT(seen.seen_from_behind, 20);  // the sheet's back (38 vertices from seed 5)
+    EXPECT_GT(seen.continued, 500);
+    EXPECT_GT(seen.ended, 50);
+    EXPECT_GT(seen.from_hit, 1000);
+    EXPECT_GT(seen.from_interaction, 600);
 }
 
 TEST(DiffuseLanes, HandlesConstantDiffuseSurfacesOnly) {
