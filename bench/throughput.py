@@ -30,7 +30,8 @@ Method "callgrind" (default): one render at a small resolution (--profile-res, 1
 
 Instruction counts are repeatable to the instruction on a shared machine, which wall-clock
 timings are not, so optimisations are decided on them. They are not time: Embree's
-SIMD traversal retires fewer, wider instructions than our scalar shading code.
+SIMD traversal retires fewer, wider instructions than most of our code, and valgrind has no
+AVX-512, so the counts are of the AVX2 build of our own SIMD kernels (core/math/simd.h).
 
 Method "perf": `perf record -e cpu-clock` (a software clock: works without hardware counters)
 over one full-size render at the requested thread count; fraction = samples in libembree /
