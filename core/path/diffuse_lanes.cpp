@@ -57,9 +57,16 @@ DiffuseLanes::DiffuseLanes(const Scene& scene) : scene_(&scene), arrays_(1) {
 }
 
 template <class Interaction>
-void DiffuseLanes::push_path(std::size_t i, const VertexNumbers& u, const PathState& state,
-                             const PathSamplerSettings& settings, const Interaction& interaction) {
+void DiffuseLanes::push_path(std::size_t i, std::int32_t shape, const VertexNumbers& u,
+                             const PathState& state, const PathSamplerSettings& settings,
+                             const Interaction& interaction) {
     Arrays& a = arrays_.front();
+    const Diffuse& d = diffuse_[static_cast<std::size_t>(
+        scene_->shapes()[static_cast<std::size_t>(shape)].bsdf())];
+    set(a.wo_world, i, Vec3f(-state.ray.direction));
+    a.two_sided[i] = d.two_sided ? 1.f : 0.f;
+    set(a.albedo, i, d.front);
+    set(a.albedo_back, i, d.back);
     set(a.throughput, i, state.throughput);
     a.eta_product[i] = state.eta_product;
     a.u_bsdf_x[i] = u.bsdf.x();
@@ -95,23 +102,13 @@ void DiffuseLanes::push(std::uint32_t id, const SurfaceInteraction& si, const Ve
     Arrays& a = arrays_.front();
     const std::size_t i = count_++;
     ids_[i] = id;
-    const Diffuse& d = diffuse_[static_cast<std::size_t>(
-        scene_->shapes()[static_cast<std::size_t>(si.shape)].bsdf())];
-    const Vec3f wo_world = -state.ray.direction;
-    // Bsdf::model_for: a two-sided surface seen from behind is the back model, mirrored.
-    const float cos_wo = wo_world.dot(si.shading.n);
-    const bool flipped = d.two_sided && cos_wo < 0.f;
     a.from_hit[i] = 0.f;
     set(a.p, i, si.p);
     set(a.n_geometric, i, si.n_geometric);
     set(a.frame_s, i, si.shading.s);
     set(a.frame_t, i, si.shading.t);
     set(a.frame_n, i, si.shading.n);
-    a.side_wo[i] = si.n_geometric.dot(wo_world);
-    a.flip[i] = flipped ? -1.f : 1.f;
-    a.wo_z[i] = flipped ? -cos_wo : cos_wo;
-    set(a.albedo, i, flipped ? d.back : d.front);
-    push_path(i, u, state, settings, [&]() -> const SurfaceInteraction& { return si; });
+    push_path(i, si.shape, u, state, settings, [&]() -> const SurfaceInteraction& { return si; });
 }
 
 void DiffuseLanes::push_hit(std::uint32_t id, const RayHit& hit, const VertexNumbers& u,
@@ -122,7 +119,6 @@ void DiffuseLanes::push_hit(std::uint32_t id, const RayHit& hit, const VertexNum
     const Shape& shape = scene_->shapes()[static_cast<std::size_t>(hit.shape)];
     const auto& mesh = std::get<TriangleMesh>(shape.geometry());
     const std::uint32_t* index = &mesh.indices[3 * static_cast<std::size_t>(hit.primitive)];
-    const Diffuse& d = diffuse_[static_cast<std::size_t>(shape.bsdf())];
     a.from_hit[i] = 1.f;
     set(a.corner0, i, mesh.positions[index[0]]);
     set(a.corner1, i, mesh.positions[index[1]]);
@@ -130,11 +126,8 @@ void DiffuseLanes::push_hit(std::uint32_t id, const RayHit& hit, const VertexNum
     set(a.n_geometric, i, shape.triangle_normal(hit.primitive));
     a.bary_u[i] = hit.barycentric.x();
     a.bary_v[i] = hit.barycentric.y();
-    set(a.wo_world, i, Vec3f(-state.ray.direction));
-    a.two_sided[i] = d.two_sided ? 1.f : 0.f;
-    set(a.albedo, i, d.front);
-    set(a.albedo_back, i, d.back);
-    push_path(i, u, state, settings, [&] { return scene_->interaction(state.ray, hit); });
+    push_path(i, hit.shape, u, state, settings,
+              [&] { return scene_->interaction(state.ray, hit); });
 }
 
 void DiffuseLanes::run(SimdIsa isa) {

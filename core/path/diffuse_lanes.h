@@ -68,7 +68,6 @@ class DiffuseLanes {
     void finish(std::size_t i, PathState& state, NextEventRay& next_event,
                 PathCounters& counters) const;
 
-    bool is_for(const Scene& scene) const { return scene_ == &scene; }
     std::size_t size() const { return count_; }
     std::uint32_t id(std::size_t i) const { return ids_[i]; }
     void clear() { count_ = 0; }
@@ -81,23 +80,18 @@ class DiffuseLanes {
         // the render's time before the padding).
         using Lane = std::array<float, kCapacity + 16>;
         using Lane3 = std::array<Lane, 3>;
-        // A vertex queued by push_hit (from_hit 1): its triangle, barycentrics, direction
-        // towards where the path came from, and both sides' reflectance; the kernel derives
-        // the fields below from them.
+        // A vertex queued by push_hit (from_hit 1): its triangle and barycentrics; the kernel
+        // derives p and the frame from them.
         Lane from_hit;
         Lane3 corner0, corner1, corner2;
         Lane bary_u, bary_v;
-        Lane3 wo_world;
-        Lane two_sided;
-        Lane3 albedo_back;
-        // The vertex.
+        // The vertex (p and the frame: push only).
         Lane3 p, n_geometric, frame_s, frame_t, frame_n;
-        Lane side_wo;      // n_geometric . wo, wo towards where the path came from
-        Lane wo_z;         // wo's cosine with the shading normal, after the two-sided flip
-        Lane flip;         // -1 where a two-sided surface is seen from behind, else 1
-        Lane3 albedo;      // reflectance of the side seen (push_hit: of the front)
-        Lane3 throughput;  // before this vertex
-        Lane eta_product;  // state.eta_product, for Russian roulette
+        Lane3 wo_world;             // towards where the path came from
+        Lane two_sided;             // 1 for a two-sided BSDF
+        Lane3 albedo, albedo_back;  // reflectance of the front and of the back
+        Lane3 throughput;           // before this vertex
+        Lane eta_product;           // state.eta_product, for Russian roulette
         Lane u_bsdf_x, u_bsdf_y, u_roulette;
         Lane roulette;  // 1 where Russian roulette applies at this vertex
         // Next-event estimation: mode 0 none, 1 a triangle of a mesh emitter (sampled here),
@@ -124,12 +118,14 @@ class DiffuseLanes {
         bool two_sided = false;
         Rgb front = Rgb::Zero(), back = Rgb::Zero();
     };
-    /// What push and push_hit share: the path's state and numbers, next-event estimation
+    /// What push and push_hit share: the surface's reflectance, the path's direction, state and
+    /// numbers, next-event estimation
     /// (`interaction` gives the vertex's SurfaceInteraction when the emitter needs the scalar
     /// code).
     template <class Interaction>
-    void push_path(std::size_t i, const VertexNumbers& u, const PathState& state,
-                   const PathSamplerSettings& settings, const Interaction& interaction);
+    void push_path(std::size_t i, std::int32_t shape, const VertexNumbers& u,
+                   const PathState& state, const PathSamplerSettings& settings,
+                   const Interaction& interaction);
 
     const Scene* scene_;
     std::vector<Diffuse> diffuse_;        // per BSDF of the scene

@@ -81,7 +81,7 @@ struct Wavefront {
     // only live paths draw), and this vertex's numbers: numbers[d][j] for active[j].
     PcgLanes streams;
     PcgLanes::Draws numbers;
-    std::optional<DiffuseLanes> diffuse;  // for the scene of the last run
+    std::optional<DiffuseLanes> diffuse;  // built on the first run
     std::vector<std::uint32_t> active;    // lanes still tracing, in lane order
     struct Shadow {
         std::uint32_t lane;
@@ -90,7 +90,7 @@ struct Wavefront {
     std::vector<Shadow> shadows;
 
     void run(const Scene& scene, const PathSamplerSettings& path, PathCounters& counters) {
-        if (!diffuse || !diffuse->is_for(scene)) diffuse.emplace(scene);
+        if (!diffuse) diffuse.emplace(scene);  // a wavefront lives for one render
         active.clear();
         for (std::uint32_t i = 0; i < lanes.size(); ++i) active.push_back(i);
         std::array<Ray, kPacket> rays;
