@@ -10,13 +10,7 @@ namespace {
 template <class Stream>
 VertexNumbers draw_numbers(Stream& stream) {
     // Every bounce draws its fixed block of dimensions up front, used or not.
-    VertexNumbers u;
-    u.emitter_choice = stream.next_1d();
-    u.emitter = stream.next_2d();
-    u.lobe = stream.next_1d();
-    u.bsdf = stream.next_2d();
-    u.roulette = stream.next_1d();
-    return u;
+    return VertexNumbers::in_draw_order([&] { return stream.next_1d(); });
 }
 
 /// Whether a vertex at state.depth may have a successor: one more would make the path longer
@@ -25,8 +19,8 @@ bool below_max_depth(const PathSamplerSettings& settings, const PathState& state
     return !(settings.max_depth >= 0 && state.depth + 1 >= settings.max_depth);
 }
 
-/// One vertex of the estimator. The one-path loop (trace_path) and the many-path driver
-/// (continue_path) both run this body, so they cannot drift apart.
+/// One vertex of the estimator, for the one-path loop (trace_path); the wavefront
+/// (render_path) runs the same parts.
 template <class Stream>
 void path_vertex(const Scene& scene, const SurfaceInteraction& si, Stream& stream,
                  const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
@@ -166,12 +160,6 @@ PathState start_path(const Ray& camera_ray, PathCounters& counters) {
     state.ray = camera_ray;
     state.prev_p = camera_ray.origin;
     return state;
-}
-
-void continue_path(const Scene& scene, const SurfaceInteraction& si, IndependentStream& stream,
-                   const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
-                   NextEventRay& next_event) {
-    path_vertex(scene, si, stream, settings, counters, state, next_event);
 }
 
 Rgb sample_path_radiance(const Scene& scene, const Ray& camera_ray, SampleStream& stream,

@@ -62,8 +62,10 @@ Rgb sample_path_radiance(const Scene& scene, const Ray& camera_ray, IndependentS
 ///
 ///     PathState state = start_path(camera_ray, counters);
 ///     do {
-///         continue_path(scene, scene.intersect(state.ray), stream, settings, counters, state,
-///                       next_event);
+///         const SurfaceInteraction si = scene.intersect(state.ray);
+///         const VertexNumbers u = draw_vertex_numbers(stream);
+///         if (begin_vertex(scene, si, settings, state))
+///             finish_vertex(scene, si, u, settings, counters, state, next_event);
 ///         if (next_event.requested && !scene.occluded(next_event.shadow))
 ///             state.radiance += next_event.contribution;
 ///     } while (state.active);
@@ -89,38 +91,41 @@ struct NextEventRay {
     bool requested = false;
 };
 
-/// The uniform numbers one vertex draws, in the order it draws them (kDimensionsPerBounce).
+/// The uniform numbers one vertex draws (kDimensionsPerBounce of them).
 struct VertexNumbers {
     float emitter_choice = 0.f;
     Vec2f emitter = Vec2f::Zero();
     float lobe = 0.f;
     Vec2f bsdf = Vec2f::Zero();
     float roulette = 0.f;
+
+    /// The vertex's numbers from `next`, called kDimensionsPerBounce times: the one order in
+    /// which every driver hands them out (a stream's draws, or the wavefront's SIMD draws).
+    template <class Next>
+    static VertexNumbers in_draw_order(Next&& next) {
+        VertexNumbers u;
+        u.emitter_choice = next();
+        u.emitter.x() = next();
+        u.emitter.y() = next();
+        u.lobe = next();
+        u.bsdf.x() = next();
+        u.bsdf.y() = next();
+        u.roulette = next();
+        return u;
+    }
 };
 
 /// A path starting with `camera_ray` (counted as a path and a camera ray).
 PathState start_path(const Ray& camera_ray, PathCounters& counters);
 
-/// Consumes the vertex `si` that `state.ray` found (invalid: the ray escaped): emission,
-/// next-event estimation (returned in `next_event` for the caller to trace), BSDF sampling and
-/// Russian roulette; leaves `state.active` true with the next ray in `state.ray`, or false.
-/// Draws the same kDimensionsPerBounce numbers per vertex as sample_path_radiance, so a path
-/// advanced this way gives the same estimate from the same stream.
-void continue_path(const Scene& scene, const SurfaceInteraction& si, IndependentStream& stream,
-                   const PathSamplerSettings& settings, PathCounters& counters, PathState& state,
-                   NextEventRay& next_event);
-
-/// continue_path in parts, for drivers that draw the numbers or finish some vertices another
-/// way (the wavefront's SIMD streams and diffuse vertices: core/sampling/pcg_lanes.h,
-/// core/path/diffuse_lanes.h). continue_path is
-///
-///     const VertexNumbers u = draw_vertex_numbers(stream);
-///     if (begin_vertex(scene, si, settings, state))
-///         finish_vertex(scene, si, u, settings, counters, state, next_event);
-///
-/// begin_vertex adds what an emitter hit (or the environment, on a miss) gives and returns
-/// whether the path goes on from `si` (false: state.active is false and the vertex is done);
-/// finish_vertex does the rest: next-event estimation, BSDF sampling and Russian roulette.
+/// One vertex of the estimator in parts (the loop above), so that drivers can draw the numbers
+/// or finish some vertices another way (the wavefront's SIMD streams and diffuse vertices:
+/// core/sampling/pcg_lanes.h, core/path/diffuse_lanes.h). draw_vertex_numbers draws the
+/// vertex's kDimensionsPerBounce numbers; begin_vertex adds what an emitter hit (or the
+/// environment, on a miss) gives and returns whether the path goes on from `si` (false:
+/// state.active is false and the vertex is done); finish_vertex does the rest: next-event
+/// estimation (returned in `next_event` for the caller to trace), BSDF sampling and Russian
+/// roulette, leaving state.active true with the next ray in state.ray, or false.
 VertexNumbers draw_vertex_numbers(IndependentStream& stream);
 bool begin_vertex(const Scene& scene, const SurfaceInteraction& si,
                   const PathSamplerSettings& settings, PathState& state);

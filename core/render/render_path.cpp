@@ -163,15 +163,10 @@ struct Wavefront {
         }
     }
 
-    /// The numbers of active[j] for this vertex, in draw_vertex_numbers' order.
-    VertexNumbers vertex_numbers(std::size_t i) const {
-        VertexNumbers u;
-        u.emitter_choice = numbers[0][i];
-        u.emitter = Vec2f(numbers[1][i], numbers[2][i]);
-        u.lobe = numbers[3][i];
-        u.bsdf = Vec2f(numbers[4][i], numbers[5][i]);
-        u.roulette = numbers[6][i];
-        return u;
+    /// The numbers of active[j] for this vertex: its draws in order.
+    VertexNumbers vertex_numbers(std::size_t j) const {
+        std::size_t draw = 0;
+        return VertexNumbers::in_draw_order([&] { return numbers[draw++][j]; });
     }
 
     /// A path for pixel (x, y) of the crop window, starting with `camera_ray`, its numbers
