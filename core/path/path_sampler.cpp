@@ -10,7 +10,7 @@ namespace {
 template <class Stream>
 VertexNumbers draw_numbers(Stream& stream) {
     // Every bounce draws its fixed block of dimensions up front, used or not.
-    return VertexNumbers::in_draw_order([&] { return stream.next_1d(); });
+    return VertexNumbers::in_draw_order([&](int) { return stream.next_1d(); });
 }
 
 /// Whether a vertex at state.depth may have a successor: one more would make the path longer

@@ -99,18 +99,19 @@ struct VertexNumbers {
     Vec2f bsdf = Vec2f::Zero();
     float roulette = 0.f;
 
-    /// The vertex's numbers from `next`, called kDimensionsPerBounce times: the one order in
-    /// which every driver hands them out (a stream's draws, or the wavefront's SIMD draws).
-    template <class Next>
-    static VertexNumbers in_draw_order(Next&& next) {
+    /// The vertex's numbers from `draw(d)`, called for d = 0 .. kDimensionsPerBounce - 1 in
+    /// that order: the one order in which every driver hands them out (a stream's successive
+    /// draws, or the wavefront's SIMD draws indexed by d).
+    template <class Draw>
+    static VertexNumbers in_draw_order(Draw&& draw) {
         VertexNumbers u;
-        u.emitter_choice = next();
-        u.emitter.x() = next();
-        u.emitter.y() = next();
-        u.lobe = next();
-        u.bsdf.x() = next();
-        u.bsdf.y() = next();
-        u.roulette = next();
+        u.emitter_choice = draw(0);
+        u.emitter.x() = draw(1);
+        u.emitter.y() = draw(2);
+        u.lobe = draw(3);
+        u.bsdf.x() = draw(4);
+        u.bsdf.y() = draw(5);
+        u.roulette = draw(6);
         return u;
     }
 };

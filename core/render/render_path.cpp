@@ -165,8 +165,8 @@ struct Wavefront {
 
     /// The numbers of active[j] for this vertex: its draws in order.
     VertexNumbers vertex_numbers(std::size_t j) const {
-        std::size_t draw = 0;
-        return VertexNumbers::in_draw_order([&] { return numbers[draw++][j]; });
+        return VertexNumbers::in_draw_order(
+            [&](int d) { return numbers[static_cast<std::size_t>(d)][j]; });
     }
 
     /// A path for pixel (x, y) of the crop window, starting with `camera_ray`, its numbers
