@@ -72,13 +72,17 @@ class Shape {
         AreaTriangle t;
         const auto* mesh = std::get_if<TriangleMesh>(&geometry_);
         if (!mesh || !triangle_areas_.valid()) return t;
-        const auto triangle = static_cast<std::size_t>(triangle_areas_.sample(u_primitive));
+        const auto triangle = static_cast<std::size_t>(area_triangle_index(u_primitive));
         const std::uint32_t* index = &mesh->indices[3 * triangle];
         t.a = &mesh->positions[index[0]];
         t.b = &mesh->positions[index[1]];
         t.c = &mesh->positions[index[2]];
         t.n_geometric = &face_normals_[triangle];
         return t;
+    }
+    /// The index of the triangle area_triangle chooses (valid only where it returns corners).
+    std::uint32_t area_triangle_index(float u_primitive) const {
+        return static_cast<std::uint32_t>(triangle_areas_.sample(u_primitive));
     }
     /// A point uniformly distributed by area (pdf_area = 1/area). Inline: next-event
     /// estimation calls it once per path vertex, as often as a ray is cast.

@@ -76,18 +76,17 @@ void DiffuseLanes::push_path(std::size_t i, std::int32_t shape, const VertexNumb
 
     a.nee_mode[i] = 0.f;
     if (state.depth + 2 < settings.min_depth) return;
-    Scene::EmitterTriangle triangle;
-    if (scene_->emitter_triangle(u.emitter_choice, triangle)) {
+    if (const Scene::EmitterTriangle* triangle = scene_->emitter_triangle(u.emitter_choice)) {
         a.nee_mode[i] = 1.f;
-        set(a.light_a, i, triangle.a);
-        set(a.light_b, i, triangle.b);
-        set(a.light_c, i, triangle.c);
-        set(a.light_n, i, triangle.n_geometric);
-        set(a.light_radiance, i, triangle.radiance);
+        set(a.light_a, i, triangle->a);
+        set(a.light_b, i, triangle->b);
+        set(a.light_c, i, triangle->c);
+        set(a.light_n, i, triangle->n_geometric);
+        set(a.light_radiance, i, triangle->radiance);
         a.u_light_x[i] = u.emitter.x();
         a.u_light_y[i] = u.emitter.y();
-        a.light_pmf[i] = triangle.pmf;
-        a.light_area[i] = triangle.area;
+        a.light_pmf[i] = triangle->pmf;
+        a.light_area[i] = triangle->area;
         return;
     }
     // Any other emitter: finish_vertex's own code, here, once per lane.

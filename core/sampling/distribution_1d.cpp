@@ -26,8 +26,21 @@ std::size_t Distribution1D::search(float u, float* u_remapped) const {
     // First bin whose upper CDF value exceeds u; zero-weight bins are never chosen because
     // their upper bound equals their lower bound.
     const auto it = std::upper_bound(cdf_.begin() + 1, cdf_.end(), target);
-    std::size_t index = static_cast<std::size_t>(std::distance(cdf_.begin() + 1, it));
-    index = std::min(index, pmf_.size() - 1);
+    const auto index = static_cast<std::size_t>(std::distance(cdf_.begin() + 1, it));
+    return finish_search(std::min(index, pmf_.size() - 1), target, u_remapped);
+}
+
+std::size_t Distribution1D::linear_search(float u, float* u_remapped) const {
+    const double target = static_cast<double>(u);
+    // The bin search() finds: the number of upper bounds cdf_[1 .. n-1] that u is not below,
+    // compared as upper_bound compares (!(u < c)), so that even a NaN u lands in the same bin.
+    std::size_t index = 0;
+    for (std::size_t k = 1; k < pmf_.size(); ++k) index += !(target < cdf_[k]) ? 1 : 0;
+    return finish_search(index, target, u_remapped);
+}
+
+std::size_t Distribution1D::finish_search(std::size_t index, double target,
+                                          float* u_remapped) const {
     while (index > 0 && pmf_[index] == 0.f) --index;  // guard against u rounding onto a gap
     if (u_remapped) {
         const double width = cdf_[index + 1] - cdf_[index];

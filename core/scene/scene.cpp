@@ -82,6 +82,24 @@ Scene::Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emi
                                               : (1.0 - infinite_share) * power[i] / finite_power);
     }
     emitter_selection_ = Distribution1D(power);
+
+    first_emitter_triangle_.assign(emitters_.size(), -1);
+    for (std::size_t i = 0; i < emitters_.size(); ++i) {
+        const auto* area = std::get_if<AreaEmitter>(&emitters_[i]);
+        if (!area || !area->radiance.is_constant()) continue;
+        const Shape& shape = shapes_[static_cast<std::size_t>(area->shape)];
+        const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry());
+        // The same condition as Shape::area_triangle's: a mesh with some area.
+        if (!mesh || !shape.area_triangle(0.f).a) continue;
+        first_emitter_triangle_[i] = static_cast<std::int64_t>(emitter_triangles_.size());
+        for (std::uint32_t t = 0; t < mesh->triangle_count(); ++t) {
+            const std::uint32_t* corner = &mesh->indices[3 * static_cast<std::size_t>(t)];
+            emitter_triangles_.push_back(EmitterTriangle{
+                mesh->positions[corner[0]], mesh->positions[corner[1]], mesh->positions[corner[2]],
+                shape.triangle_normal(t), area->radiance.eval(Vec2f::Zero()),
+                emitter_selection_.pmf(i), shape.surface_area()});
+        }
+    }
 }
 
 SurfaceInteraction Scene::intersect(const Ray& ray) const {
@@ -189,22 +207,15 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
     return s;
 }
 
-bool Scene::emitter_triangle(float u_select, EmitterTriangle& out) const {
-    if (!emitter_selection_.valid()) return false;
+const Scene::EmitterTriangle* Scene::emitter_triangle(float u_select) const {
+    if (!emitter_selection_.valid()) return nullptr;
     const auto [index, pmf, u_remapped] = choose_emitter(u_select);
-    const auto* area = std::get_if<AreaEmitter>(&emitters_[index]);
-    if (!area || !area->radiance.is_constant()) return false;
-    const Shape& shape = shapes_[static_cast<std::size_t>(area->shape)];
-    const Shape::AreaTriangle triangle = shape.area_triangle(u_remapped);
-    if (!triangle.a) return false;
-    out.a = *triangle.a;
-    out.b = *triangle.b;
-    out.c = *triangle.c;
-    out.n_geometric = *triangle.n_geometric;
-    out.radiance = area->radiance.eval(Vec2f::Zero());
-    out.pmf = pmf;
-    out.area = shape.surface_area();
-    return true;
+    const std::int64_t first = first_emitter_triangle_[index];
+    if (first < 0) return nullptr;
+    const Shape& shape =
+        shapes_[static_cast<std::size_t>(std::get<AreaEmitter>(emitters_[index]).shape)];
+    return &emitter_triangles_[static_cast<std::size_t>(first) +
+                               shape.area_triangle_index(u_remapped)];
 }
 
 Scene::AreaPoint Scene::sample_area_emitter_point(std::size_t index, float u_primitive,

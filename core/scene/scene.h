@@ -154,7 +154,9 @@ class Scene {
     /// What sample_emitter samples when `u_select` chooses an area emitter of constant radiance
     /// on a triangle mesh (most scenes' lights): the triangle it would pick, for callers that
     /// compute the rest of sample_emitter themselves, many at once (core/path/diffuse_lanes.h).
-    /// False for every other choice; sample_emitter handles those.
+    /// Null for every other choice; sample_emitter handles those. The triangles are tabulated
+    /// when the scene is built (one lookup here instead of following shape, mesh, indices and
+    /// positions per call: the path tracer calls this at every diffuse vertex).
     struct EmitterTriangle {
         Vec3f a = Vec3f::Zero(), b = Vec3f::Zero(), c = Vec3f::Zero();  // corners
         Vec3f n_geometric = Vec3f::Zero();                              // unit face normal
@@ -162,7 +164,7 @@ class Scene {
         float pmf = 0.f;   // probability of choosing the emitter
         float area = 0.f;  // the emitter's whole area (its points are uniform by area)
     };
-    bool emitter_triangle(float u_select, EmitterTriangle& out) const;
+    const EmitterTriangle* emitter_triangle(float u_select) const;
 
     /// A ray leaving an emitter chosen by power as in sample_emitter (`u_select`), at a point
     /// chosen by `u_position` (uniform by area) in a direction chosen by `u_direction`:
@@ -223,6 +225,11 @@ class Scene {
     /// by area (the uv of a sampled point is needed to look the radiance up); empty otherwise.
     std::vector<Distribution1D> textured_emitter_triangles_;
     Distribution1D emitter_selection_;
+    /// emitter_triangle's table: every triangle of each constant-radiance area emitter on a
+    /// mesh, emitter after emitter, and per emitter the index of its first triangle (-1 for
+    /// the others).
+    std::vector<EmitterTriangle> emitter_triangles_;
+    std::vector<std::int64_t> first_emitter_triangle_;
     PerspectiveCamera camera_;
     IntegratorSettings integrator_;
     SamplerSettings sampler_;
