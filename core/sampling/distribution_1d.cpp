@@ -41,7 +41,10 @@ std::size_t Distribution1D::linear_search(float u, float* u_remapped) const {
 
 std::size_t Distribution1D::finish_search(std::size_t index, double target,
                                           float* u_remapped) const {
-    while (index > 0 && pmf_[index] == 0.f) --index;  // guard against u rounding onto a gap
+    // Guard against u rounding onto a gap. The bin's weight is tested first: that branch goes
+    // one way unless the distribution has empty bins, while `index > 0` is as random as u
+    // (perf: its mispredictions made this function 3.6% of the path tracer's time).
+    while (pmf_[index] == 0.f && index > 0) --index;
     if (u_remapped) {
         const double width = cdf_[index + 1] - cdf_[index];
         const double r = width > 0.0 ? (target - cdf_[index]) / width : 0.0;
