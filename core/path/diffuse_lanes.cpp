@@ -146,27 +146,27 @@ void DiffuseLanes::run(SimdIsa isa) {
 void DiffuseLanes::finish(std::size_t i, PathState& state, NextEventRay& next_event,
                           PathCounters& counters) const {
     const Arrays& a = arrays_.front();
+    // Every field is copied whether it is used or not: whether a vertex has a shadow ray, and
+    // whether its path goes on, are as random as the paths, and branches on them mispredict.
     if (a.nee_mode[i] == 2.f) {
         next_event = given_[i];
     } else {
         next_event.requested = a.nee_requested[i] != 0.f;
-        if (next_event.requested) {
-            next_event.shadow =
-                Ray{column(a.shadow_origin, i), column(a.shadow_direction, i), a.shadow_t_max[i]};
-            next_event.contribution =
-                Rgb(a.contribution[0][i], a.contribution[1][i], a.contribution[2][i]);
-        }
+        next_event.shadow =
+            Ray{column(a.shadow_origin, i), column(a.shadow_direction, i), a.shadow_t_max[i]};
+        next_event.contribution =
+            Rgb(a.contribution[0][i], a.contribution[1][i], a.contribution[2][i]);
     }
-    if (next_event.requested) ++counters.shadow_rays;
+    counters.shadow_rays += next_event.requested ? 1 : 0;
     state.active = a.active[i] != 0.f;
-    if (!state.active) return;
     state.throughput = Rgb(a.throughput[0][i], a.throughput[1][i], a.throughput[2][i]);
     state.prev_pdf_bsdf = a.pdf_bsdf[i];
     state.prev_delta = false;
     state.prev_p = column(a.p, i);
     state.ray = Ray{column(a.ray_origin, i), column(a.ray_direction, i), kInfinity};
-    ++state.depth;
-    ++counters.bounce_rays;
+    const int went_on = state.active ? 1 : 0;
+    state.depth += went_on;
+    counters.bounce_rays += static_cast<std::uint64_t>(went_on);
 }
 
 }  // namespace gdmlt

@@ -64,7 +64,9 @@ class DiffuseLanes {
     /// Computes every queued vertex, with the kernel built for `isa` (core/math/simd.h).
     void run(SimdIsa isa = best_simd_isa());
     /// The result for the i-th queued vertex, as finish_vertex would leave `state`,
-    /// `next_event` and `counters`.
+    /// `next_event` and `counters` (where the path ends, `state` has only its radiance and
+    /// `active` false to go by, and a shadow ray not requested is only that: finish_vertex
+    /// leaves other values in the fields unused then).
     void finish(std::size_t i, PathState& state, NextEventRay& next_event,
                 PathCounters& counters) const;
 

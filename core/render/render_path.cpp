@@ -87,7 +87,9 @@ struct Wavefront {
         std::uint32_t lane;
         NextEventRay ray;
     };
-    std::vector<Shadow> shadows;
+    // The shadow rays of one bounce (at most one per path), shadow_count of them.
+    std::vector<Shadow> shadows = std::vector<Shadow>(kWavefrontPaths);
+    std::size_t shadow_count = 0;
 
     void run(const Scene& scene, const PathSamplerSettings& path, PathCounters& counters) {
         if (!diffuse) diffuse.emplace(scene);  // a wavefront lives for one render
@@ -102,7 +104,7 @@ struct Wavefront {
         // incoherent (the flag would slow them 2-3x).
         bool camera_rays = true;
         while (!active.empty()) {
-            shadows.clear();
+            shadow_count = 0;
             // Every path draws its vertex's kDimensionsPerBounce numbers (whether it uses them
             // or not), 8 streams per instruction with AVX-512.
             streams.next_floats(active.size(), kDimensionsPerBounce, numbers);
@@ -130,21 +132,25 @@ struct Wavefront {
                     }
                     Shadow shadow{index, {}};
                     finish_vertex(scene, si, u, path, counters, lane.state, shadow.ray);
-                    if (shadow.ray.requested) shadows.push_back(shadow);
+                    if (shadow.ray.requested) shadows[shadow_count++] = shadow;
                 }
             }
             // The diffuse vertices of this bounce, all at once.
             diffuse->run();
             for (std::size_t i = 0; i < diffuse->size(); ++i) {
-                Shadow shadow{diffuse->id(i), {}};
+                // Written in place, kept when requested: no branch on it (see finish), and no
+                // copy of a Shadow just written field by field (the store-forwarding stall of
+                // such a copy was 1-2% of the render's time in perf).
+                Shadow& shadow = shadows[shadow_count];
+                shadow.lane = diffuse->id(i);
                 diffuse->finish(i, lanes[shadow.lane].state, shadow.ray, counters);
-                if (shadow.ray.requested) shadows.push_back(shadow);
+                shadow_count += shadow.ray.requested ? 1 : 0;
             }
             diffuse->clear();
             // Shadow rays before any path's next vertex: each path's radiance then sums its
             // terms in the order sample_path_radiance does.
-            for (std::size_t first = 0; first < shadows.size(); first += kPacket) {
-                const std::size_t count = std::min<std::size_t>(kPacket, shadows.size() - first);
+            for (std::size_t first = 0; first < shadow_count; first += kPacket) {
+                const std::size_t count = std::min<std::size_t>(kPacket, shadow_count - first);
                 for (std::size_t k = 0; k < count; ++k) rays[k] = shadows[first + k].ray.shadow;
                 scene.occluded_packet(std::span(rays.data(), count), blocked);
                 // Without branches: whether a shadow ray is blocked, and below whether a path
