@@ -47,6 +47,25 @@ DiffuseLanes::DiffuseLanes(const Scene& scene) : scene_(&scene), arrays_(1) {
         if (bsdf.back()) d.handled = d.handled && constant_diffuse(*bsdf.back(), d.back);
         diffuse_.push_back(d);
     }
+    const auto append = [](std::array<std::vector<float>, 3>& column, const auto& value) {
+        for (int c = 0; c < 3; ++c) column[static_cast<std::size_t>(c)].push_back(value[c]);
+    };
+    for (const Diffuse& d : diffuse_) {
+        tables_.two_sided.push_back(d.two_sided ? 1.f : 0.f);
+        append(tables_.albedo, d.front);
+        append(tables_.albedo_back, d.back);
+    }
+    std::vector<Scene::EmitterTriangle> triangles = scene.emitter_triangles();
+    if (triangles.empty()) triangles.emplace_back();  // index 0 is read by lanes without one
+    for (const Scene::EmitterTriangle& triangle : triangles) {
+        append(tables_.light_a, triangle.a);
+        append(tables_.light_b, triangle.b);
+        append(tables_.light_c, triangle.c);
+        append(tables_.light_n, triangle.n_geometric);
+        append(tables_.light_radiance, triangle.radiance);
+        tables_.light_pmf.push_back(triangle.pmf);
+        tables_.light_area.push_back(triangle.area);
+    }
     for (const Shape& shape : scene.shapes()) {
         const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry());
         from_hit_.push_back(mesh && mesh->normals.empty() && shape.emitter() < 0 &&
@@ -61,12 +80,8 @@ void DiffuseLanes::push_path(std::size_t i, std::int32_t shape, const VertexNumb
                              const PathState& state, const PathSamplerSettings& settings,
                              const Interaction& interaction) {
     Arrays& a = arrays_.front();
-    const Diffuse& d = diffuse_[static_cast<std::size_t>(
-        scene_->shapes()[static_cast<std::size_t>(shape)].bsdf())];
+    a.bsdf[i] = scene_->shapes()[static_cast<std::size_t>(shape)].bsdf();
     set(a.wo_world, i, Vec3f(-state.ray.direction));
-    a.two_sided[i] = d.two_sided ? 1.f : 0.f;
-    set(a.albedo, i, d.front);
-    set(a.albedo_back, i, d.back);
     set(a.throughput, i, state.throughput);
     a.eta_product[i] = state.eta_product;
     a.u_bsdf_x[i] = u.bsdf.x();
@@ -75,18 +90,13 @@ void DiffuseLanes::push_path(std::size_t i, std::int32_t shape, const VertexNumb
     a.roulette[i] = state.depth + 1 >= settings.rr_depth ? 1.f : 0.f;
 
     a.nee_mode[i] = 0.f;
+    a.light[i] = 0;
     if (state.depth + 2 < settings.min_depth) return;
     if (const Scene::EmitterTriangle* triangle = scene_->emitter_triangle(u.emitter_choice)) {
         a.nee_mode[i] = 1.f;
-        set(a.light_a, i, triangle->a);
-        set(a.light_b, i, triangle->b);
-        set(a.light_c, i, triangle->c);
-        set(a.light_n, i, triangle->n_geometric);
-        set(a.light_radiance, i, triangle->radiance);
+        a.light[i] = static_cast<std::int32_t>(triangle - scene_->emitter_triangles().data());
         a.u_light_x[i] = u.emitter.x();
         a.u_light_y[i] = u.emitter.y();
-        a.light_pmf[i] = triangle->pmf;
-        a.light_area[i] = triangle->area;
         return;
     }
     // Any other emitter: finish_vertex's own code, here, once per lane.
@@ -132,13 +142,13 @@ void DiffuseLanes::push_hit(std::uint32_t id, const RayHit& hit, const VertexNum
 void DiffuseLanes::run(SimdIsa isa) {
     switch (isa) {
         case SimdIsa::Avx512:
-            avx512::diffuse_vertices(arrays_.front(), count_);
+            avx512::diffuse_vertices(arrays_.front(), tables_, count_);
             break;
         case SimdIsa::Avx2:
-            avx2::diffuse_vertices(arrays_.front(), count_);
+            avx2::diffuse_vertices(arrays_.front(), tables_, count_);
             break;
         case SimdIsa::Baseline:
-            baseline::diffuse_vertices(arrays_.front(), count_);
+            baseline::diffuse_vertices(arrays_.front(), tables_, count_);
             break;
     }
 }

@@ -82,6 +82,7 @@ class DiffuseLanes {
         // the render's time before the padding).
         using Lane = std::array<float, kCapacity + 16>;
         using Lane3 = std::array<Lane, 3>;
+        using Index = std::array<std::int32_t, kCapacity + 16>;
         // A vertex queued by push_hit (from_hit 1): its triangle and barycentrics; the kernel
         // derives p and the frame from them.
         Lane from_hit;
@@ -89,19 +90,17 @@ class DiffuseLanes {
         Lane bary_u, bary_v;
         // The vertex (p and the frame: push only).
         Lane3 p, n_geometric, frame_s, frame_t, frame_n;
-        Lane3 wo_world;             // towards where the path came from
-        Lane two_sided;             // 1 for a two-sided BSDF
-        Lane3 albedo, albedo_back;  // reflectance of the front and of the back
-        Lane3 throughput;           // before this vertex
-        Lane eta_product;           // state.eta_product, for Russian roulette
+        Lane3 wo_world;    // towards where the path came from
+        Index bsdf;        // the surface's entry in Tables' BSDF columns
+        Lane3 throughput;  // before this vertex
+        Lane eta_product;  // state.eta_product, for Russian roulette
         Lane u_bsdf_x, u_bsdf_y, u_roulette;
         Lane roulette;  // 1 where Russian roulette applies at this vertex
         // Next-event estimation: mode 0 none, 1 a triangle of a mesh emitter (sampled here),
         // 2 any other emitter (computed in push() by sample_next_event, the scalar code).
         Lane nee_mode;
-        Lane3 light_a, light_b, light_c, light_n;  // mode 1: the triangle and its normal
-        Lane u_light_x, u_light_y, light_pmf, light_area;
-        Lane3 light_radiance;
+        Index light;  // mode 1: the triangle's entry in Tables' light columns (else 0)
+        Lane u_light_x, u_light_y;
         // Outputs (floats, 0 or 1 for yes/no: one lane width throughout lets every decision
         // be a vector mask). Shadow ray, its contribution when unblocked, whether it is traced.
         Lane3 shadow_origin, shadow_direction;
@@ -112,6 +111,20 @@ class DiffuseLanes {
         Lane3 ray_origin, ray_direction;
         Lane pdf_bsdf;
         Lane active;
+    };
+
+    /// What is the same for every vertex on one surface or towards one light triangle, in
+    /// columns the kernel gathers from by index (one gather instruction per column and 16
+    /// lanes with AVX-512), instead of push copying it into every lane (perf: push_hit's 24
+    /// stores of these were about a third of its time). Public for the kernel only.
+    struct Tables {
+        // Per BSDF of the scene: 1 for two-sided, the reflectance of the front and the back.
+        std::vector<float> two_sided;
+        std::array<std::vector<float>, 3> albedo, albedo_back;
+        // Per entry of Scene::emitter_triangles() (at least one, a dummy for scenes without):
+        // corners, unit normal, radiance, the emitter's probability and its whole area.
+        std::array<std::vector<float>, 3> light_a, light_b, light_c, light_n, light_radiance;
+        std::vector<float> light_pmf, light_area;
     };
 
   private:
@@ -136,6 +149,7 @@ class DiffuseLanes {
     std::array<std::uint32_t, kCapacity> ids_{};
     std::array<NextEventRay, kCapacity> given_{};  // next-event estimation of mode 2 lanes
     std::vector<Arrays> arrays_;                   // one element: 100 KB, kept off the stack
+    Tables tables_;
 };
 
 }  // namespace gdmlt

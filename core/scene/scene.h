@@ -165,6 +165,8 @@ class Scene {
         float area = 0.f;  // the emitter's whole area (its points are uniform by area)
     };
     const EmitterTriangle* emitter_triangle(float u_select) const;
+    /// The table emitter_triangle's results point into.
+    const std::vector<EmitterTriangle>& emitter_triangles() const { return emitter_triangles_; }
 
     /// A ray leaving an emitter chosen by power as in sample_emitter (`u_select`), at a point
     /// chosen by `u_position` (uniform by area) in a direction chosen by `u_direction`:
