@@ -155,7 +155,8 @@ struct Wavefront {
                 scene.occluded_packet(std::span(rays.data(), count), blocked);
                 // Without branches: whether a shadow ray is blocked, and below whether a path
                 // goes on, are as random as the paths (a branch on them mispredicts often).
-                // Adding +0 leaves a radiance unchanged, bit for bit.
+                // Adding +0 leaves a radiance unchanged (a -0 component would become +0:
+                // the same pixel value).
                 for (std::size_t k = 0; k < count; ++k) {
                     const Shadow& shadow = shadows[first + k];
                     lanes[shadow.lane].state.radiance +=
