@@ -92,9 +92,9 @@ void DiffuseLanes::push_path(std::size_t i, std::int32_t shape, const VertexNumb
     a.nee_mode[i] = 0.f;
     a.light[i] = 0;
     if (state.depth + 2 < settings.min_depth) return;
-    if (const Scene::EmitterTriangle* triangle = scene_->emitter_triangle(u.emitter_choice)) {
+    if (const std::int64_t triangle = scene_->emitter_triangle(u.emitter_choice); triangle >= 0) {
         a.nee_mode[i] = 1.f;
-        a.light[i] = static_cast<std::int32_t>(triangle - scene_->emitter_triangles().data());
+        a.light[i] = static_cast<std::int32_t>(triangle);
         a.u_light_x[i] = u.emitter.x();
         a.u_light_y[i] = u.emitter.y();
         return;

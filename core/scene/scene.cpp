@@ -207,15 +207,14 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
     return s;
 }
 
-const Scene::EmitterTriangle* Scene::emitter_triangle(float u_select) const {
-    if (!emitter_selection_.valid()) return nullptr;
+std::int64_t Scene::emitter_triangle(float u_select) const {
+    if (!emitter_selection_.valid()) return -1;
     const auto [index, pmf, u_remapped] = choose_emitter(u_select);
     const std::int64_t first = first_emitter_triangle_[index];
-    if (first < 0) return nullptr;
+    if (first < 0) return -1;
     const Shape& shape =
         shapes_[static_cast<std::size_t>(std::get<AreaEmitter>(emitters_[index]).shape)];
-    return &emitter_triangles_[static_cast<std::size_t>(first) +
-                               shape.area_triangle_index(u_remapped)];
+    return first + shape.area_triangle_index(u_remapped);
 }
 
 Scene::AreaPoint Scene::sample_area_emitter_point(std::size_t index, float u_primitive,

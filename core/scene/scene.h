@@ -152,11 +152,12 @@ class Scene {
     EmitterSample sample_emitter(const Vec3f& ref_p, float u_select, const Vec2f& u) const;
 
     /// What sample_emitter samples when `u_select` chooses an area emitter of constant radiance
-    /// on a triangle mesh (most scenes' lights): the triangle it would pick, for callers that
-    /// compute the rest of sample_emitter themselves, many at once (core/path/diffuse_lanes.h).
-    /// Null for every other choice; sample_emitter handles those. The triangles are tabulated
-    /// when the scene is built (one lookup here instead of following shape, mesh, indices and
-    /// positions per call: the path tracer calls this at every diffuse vertex).
+    /// on a triangle mesh (most scenes' lights): the triangle it would pick, as an index into
+    /// emitter_triangles(), for callers that compute the rest of sample_emitter themselves,
+    /// many at once (core/path/diffuse_lanes.h). -1 for every other choice; sample_emitter
+    /// handles those. The triangles are tabulated when the scene is built (one lookup here
+    /// instead of following shape, mesh, indices and positions per call: the path tracer calls
+    /// this at every diffuse vertex).
     struct EmitterTriangle {
         Vec3f a = Vec3f::Zero(), b = Vec3f::Zero(), c = Vec3f::Zero();  // corners
         Vec3f n_geometric = Vec3f::Zero();                              // unit face normal
@@ -164,8 +165,8 @@ class Scene {
         float pmf = 0.f;   // probability of choosing the emitter
         float area = 0.f;  // the emitter's whole area (its points are uniform by area)
     };
-    const EmitterTriangle* emitter_triangle(float u_select) const;
-    /// The table emitter_triangle's results point into.
+    std::int64_t emitter_triangle(float u_select) const;
+    /// The table emitter_triangle indexes.
     const std::vector<EmitterTriangle>& emitter_triangles() const { return emitter_triangles_; }
 
     /// A ray leaving an emitter chosen by power as in sample_emitter (`u_select`), at a point
