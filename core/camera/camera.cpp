@@ -1,11 +1,31 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "core/camera/camera.h"
 
+#include <immintrin.h>
+
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
 namespace gdmlt {
+namespace {
+
+/// What generate_rays' kernel needs of the camera.
+struct CameraRayConstants {
+    float width = 0.f, height = 0.f;  // full film, pixels
+    float tan_x = 0.f, tan_y = 0.f;   // tangents of the half fields of view
+    float near_clip = 0.f;
+    double m[3][3] = {};  // world_from_camera's linear part, row by row
+    float position[3] = {};
+};
+
+// The kernel, compiled for each instruction set of core/math/simd.h (simd_targets.inc).
+#define GDMLT_SIMD_KERNEL "core/camera/camera_lanes_kernel.inc"
+#include "core/math/simd_targets.inc"
+#undef GDMLT_SIMD_KERNEL
+
+}  // namespace
 
 PerspectiveCamera::PerspectiveCamera(const Transform& world_from_camera, const Film& film,
                                      float fov_deg, const std::string& fov_axis, float near_clip)
@@ -45,17 +65,63 @@ PerspectiveCamera::PerspectiveCamera(const Transform& world_from_camera, const F
 }
 
 Ray PerspectiveCamera::generate_ray(const Vec2f& film_position) const {
+    // Written out operation by operation (not with Eigen's product and normalized()), so that
+    // generate_rays' SIMD lanes can repeat it in the same order and round alike. The
+    // camera-space direction is (dx, dy, 1).
     const float ndc_x = 2.f * film_position.x() / static_cast<float>(film_.width) - 1.f;
     const float ndc_y = 2.f * film_position.y() / static_cast<float>(film_.height) - 1.f;
-    const Vec3f d_camera(-ndc_x * tan_half_fov_x_, -ndc_y * tan_half_fov_y_, 1.f);
-    const Vec3f d_world = world_from_camera_.apply_vector(d_camera).normalized();
-    // near_clip is a distance along the optical axis (z = 1 in d_camera), as in Mitsuba.
-    const float t_near = near_clip_ * d_camera.norm();
+    const float dx = -ndc_x * tan_half_fov_x_, dy = -ndc_y * tan_half_fov_y_;
+    // Rotated by world_from_camera's linear part in double, as Transform::apply_vector does,
+    // then rounded to float; the z term is m(r, 2) * 1 = m(r, 2).
+    const Eigen::Matrix4d& m = world_from_camera_.matrix;
+    const auto row = [&](int r) {
+        return static_cast<float>(
+            (m(r, 0) * static_cast<double>(dx) + m(r, 1) * static_cast<double>(dy)) + m(r, 2));
+    };
+    Vec3f d_world(row(0), row(1), row(2));
+    // Normalised; a zero vector stays as it is (Eigen's normalized() does the same).
+    const float squared =
+        d_world.x() * d_world.x() + (d_world.y() * d_world.y() + d_world.z() * d_world.z());
+    if (squared > 0.f) {
+        const float length = std::sqrt(squared);
+        d_world = Vec3f(d_world.x() / length, d_world.y() / length, d_world.z() / length);
+    }
+    // near_clip is a distance along the optical axis (z = 1 in camera space), as in Mitsuba.
+    const float t_near = near_clip_ * std::sqrt(dx * dx + (dy * dy + 1.f));
     Ray ray;
-    ray.origin = position_ + d_world * t_near;
+    ray.origin = Vec3f(position_.x() + d_world.x() * t_near, position_.y() + d_world.y() * t_near,
+                       position_.z() + d_world.z() * t_near);
     ray.direction = d_world;
     ray.t_max = kInfinity;
     return ray;
+}
+
+void PerspectiveCamera::generate_rays(std::span<const float> film_x, std::span<const float> film_y,
+                                      std::span<Ray> rays, SimdIsa isa) const {
+    if (film_y.size() != film_x.size() || rays.size() < film_x.size())
+        throw std::invalid_argument("generate_rays: film_x, film_y and rays differ in size");
+    CameraRayConstants c;
+    c.width = static_cast<float>(film_.width);
+    c.height = static_cast<float>(film_.height);
+    c.tan_x = tan_half_fov_x_;
+    c.tan_y = tan_half_fov_y_;
+    c.near_clip = near_clip_;
+    for (int r = 0; r < 3; ++r) {
+        for (int k = 0; k < 3; ++k) c.m[r][k] = world_from_camera_.matrix(r, k);
+        c.position[r] = position_[r];
+    }
+    const std::size_t count = film_x.size();
+    switch (isa) {
+        case SimdIsa::Avx512:
+            avx512::generate_rays(c, count, film_x.data(), film_y.data(), rays.data());
+            break;
+        case SimdIsa::Avx2:
+            avx2::generate_rays(c, count, film_x.data(), film_y.data(), rays.data());
+            break;
+        case SimdIsa::Baseline:
+            baseline::generate_rays(c, count, film_x.data(), film_y.data(), rays.data());
+            break;
+    }
 }
 
 CameraConnection PerspectiveCamera::project(const Vec3f& d, float* camera_z) const {

@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <span>
 
 #include "core/geometry/ray.h"
+#include "core/math/simd.h"
 #include "core/math/transform.h"
 #include "core/math/types.h"
 
@@ -55,6 +57,11 @@ class PerspectiveCamera {
 
     /// Ray through a position on the full film, in pixels ((0,0) = top-left corner).
     Ray generate_ray(const Vec2f& film_position) const;
+    /// generate_ray for many film positions at once, in SIMD lanes (the path tracer's camera
+    /// rays, a wavefront at a time): rays[i] is generate_ray({film_x[i], film_y[i]}) bit for
+    /// bit, on every instruction set. film_x and film_y have the same size; rays at least it.
+    void generate_rays(std::span<const float> film_x, std::span<const float> film_y,
+                       std::span<Ray> rays, SimdIsa isa = best_simd_isa()) const;
 
     /// The pinhole's view of world point `p`: invalid when `p` lies behind the near clip
     /// plane (camera rays start there) or outside the crop window.

@@ -5,6 +5,8 @@
 // namespace of its own, and the choice among them at run time. Every kernel gives the same
 // bits on each (IEEE operations lane by lane, no fused multiply-adds), so the choice changes
 // speed only.
+#include <vector>
+
 namespace gdmlt {
 
 enum class SimdIsa { Baseline, Avx2, Avx512 };
@@ -19,6 +21,15 @@ inline SimdIsa best_simd_isa() {
         return SimdIsa::Baseline;
     }();
     return best;
+}
+
+/// Every instruction set this processor runs, narrowest first (tests compare the kernels
+/// built for each against the scalar code).
+inline std::vector<SimdIsa> available_simd_isas() {
+    std::vector<SimdIsa> isas{SimdIsa::Baseline};
+    if (best_simd_isa() != SimdIsa::Baseline) isas.push_back(SimdIsa::Avx2);
+    if (best_simd_isa() == SimdIsa::Avx512) isas.push_back(SimdIsa::Avx512);
+    return isas;
 }
 
 }  // namespace gdmlt

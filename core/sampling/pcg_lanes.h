@@ -28,6 +28,15 @@ class PcgLanes {
         state_[i] = rng.state();
         increment_[i] = rng.increment();
     }
+    /// Identifiers of `seed_samples`, one per stream.
+    using Keys = std::array<std::uint64_t, kCapacity>;
+    /// Streams i < count become IndependentStream(derive_stream(seed, id_a[i], id_b[i]))'s
+    /// (the stream pixel_sample gives sample id_b[i] of pixel id_a[i]), all at once: the
+    /// same hashing and seeding (core/sampling/rng.h, sample_stream.h) in SIMD lanes. As in
+    /// next_floats, count is rounded up to the vector width (the extra streams get unused
+    /// states from whatever the keys hold past count).
+    void seed_samples(std::size_t count, std::uint64_t seed, const Keys& id_a, const Keys& id_b,
+                      SimdIsa isa = best_simd_isa());
     /// The state stream `i` has reached (for tests and for handing a stream back).
     Pcg32 get(std::size_t i) const;
     /// Stream `from` becomes stream `to` (compaction: drivers keep live streams first).

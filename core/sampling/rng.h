@@ -19,10 +19,13 @@ constexpr std::uint64_t mix_bits(std::uint64_t v) {
 }
 
 /// A stream key from a global seed and one or two identifiers (pixel index, pass, chain id).
+/// (PcgLanes::seed_samples repeats it in SIMD lanes, with these two constants.)
+inline constexpr std::uint64_t kStreamSeedSalt = 0x9e3779b97f4a7c15ULL;
+inline constexpr std::uint64_t kStreamIdSalt = 0x632be59bd9b4e019ULL;
 constexpr std::uint64_t derive_stream(std::uint64_t seed, std::uint64_t id_a,
                                       std::uint64_t id_b = 0) {
-    return mix_bits(mix_bits(seed ^ 0x9e3779b97f4a7c15ULL) ^
-                    mix_bits(id_a + 0x632be59bd9b4e019ULL) ^ (mix_bits(id_b) << 1));
+    return mix_bits(mix_bits(seed ^ kStreamSeedSalt) ^ mix_bits(id_a + kStreamIdSalt) ^
+                    (mix_bits(id_b) << 1));
 }
 
 class Pcg32 {

@@ -139,20 +139,12 @@ void expect_same_as_finish_vertex(const Scene& scene, const PathSamplerSettings&
     }
 }
 
-std::vector<SimdIsa> available_isas() {
-    std::vector<SimdIsa> isas{SimdIsa::Baseline};
-    const SimdIsa best = best_simd_isa();
-    if (best != SimdIsa::Baseline) isas.push_back(SimdIsa::Avx2);
-    if (best == SimdIsa::Avx512) isas.push_back(SimdIsa::Avx512);
-    return isas;
-}
-
 /// expect_same_as_finish_vertex on every instruction set this processor has; what the vertices
 /// covered (the same on each).
 Coverage expect_same_on_every_isa(const Scene& scene, const PathSamplerSettings& settings,
                                   const std::vector<Reference>& references) {
     Coverage seen;
-    for (const SimdIsa isa : available_isas()) {
+    for (const SimdIsa isa : available_simd_isas()) {
         SCOPED_TRACE(testing::Message() << "instruction set " << static_cast<int>(isa));
         seen = Coverage{};
         expect_same_as_finish_vertex(scene, settings, references, isa, seen);

@@ -7,23 +7,17 @@
 #include <vector>
 
 #include "core/sampling/pcg_lanes.h"
+#include "core/sampling/sample_stream.h"
 
 namespace gdmlt {
 namespace {
-
-std::vector<SimdIsa> available_isas() {
-    std::vector<SimdIsa> isas{SimdIsa::Baseline};
-    if (best_simd_isa() != SimdIsa::Baseline) isas.push_back(SimdIsa::Avx2);
-    if (best_simd_isa() == SimdIsa::Avx512) isas.push_back(SimdIsa::Avx512);
-    return isas;
-}
 
 TEST(PcgLanes, EveryStreamDrawsWhatItsPcg32Draws) {
     // 200 streams (not a multiple of any vector width) with states spread over the whole 64-bit
     // range, so that all rotations (the top 5 bits of the state) occur; three rounds of 7 and
     // one of 8 draws, and between rounds every third stream dropped by move() as the wavefront
     // drops finished paths.
-    for (const SimdIsa isa : available_isas()) {
+    for (const SimdIsa isa : available_simd_isas()) {
         SCOPED_TRACE(testing::Message() << "instruction set " << static_cast<int>(isa));
         std::vector<Pcg32> reference;
         PcgLanes lanes;
@@ -53,6 +47,33 @@ TEST(PcgLanes, EveryStreamDrawsWhatItsPcg32Draws) {
         }
         EXPECT_GT(compared, 3000);
         for (std::size_t i = 0; i < reference.size(); ++i) EXPECT_EQ(lanes.get(i), reference[i]);
+    }
+}
+
+TEST(PcgLanes, SeededStreamsAreThoseOfIndependentStreams) {
+    // seed_samples against IndependentStream(derive_stream(seed, a, b)), the stream
+    // pixel_sample gives: 250 streams (not a multiple of any vector width), identifiers from
+    // small pixel and sample indices to the whole 64-bit range (a Pcg32 stream, seed 3), three
+    // seeds including 0 and ~0. The keys past `count` hold other values and must not matter.
+    for (const SimdIsa isa : available_simd_isas()) {
+        SCOPED_TRACE(testing::Message() << "instruction set " << static_cast<int>(isa));
+        Pcg32 ids(3, 4);
+        PcgLanes::Keys id_a{}, id_b{};
+        for (std::size_t i = 0; i < id_a.size(); ++i) {
+            const std::uint64_t wide = (std::uint64_t{ids.next_u32()} << 32) | ids.next_u32();
+            id_a[i] = i % 2 == 0 ? i * 977 : wide;
+            id_b[i] = i % 3 == 0 ? i % 64 : ~wide;
+        }
+        constexpr std::size_t kCount = 250;
+        for (const std::uint64_t seed :
+             {std::uint64_t{0}, std::uint64_t{12345}, ~std::uint64_t{0}}) {
+            PcgLanes lanes;
+            lanes.seed_samples(kCount, seed, id_a, id_b, isa);
+            for (std::size_t i = 0; i < kCount; ++i)
+                ASSERT_EQ(lanes.get(i),
+                          IndependentStream(derive_stream(seed, id_a[i], id_b[i])).rng())
+                    << "stream " << i << " seed " << seed;
+        }
     }
 }
 
