@@ -153,15 +153,6 @@ bool begin_vertex_without_emission(const PathSamplerSettings& settings, PathStat
     return below_max_depth(settings, state);
 }
 
-PathState start_path(const Ray& camera_ray, PathCounters& counters) {
-    ++counters.paths;
-    ++counters.camera_rays;
-    PathState state;
-    state.ray = camera_ray;
-    state.prev_p = camera_ray.origin;
-    return state;
-}
-
 Rgb sample_path_radiance(const Scene& scene, const Ray& camera_ray, SampleStream& stream,
                          const PathSamplerSettings& settings, PathCounters& counters) {
     return trace_path(scene, camera_ray, stream, settings, counters);
