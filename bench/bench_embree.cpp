@@ -161,18 +161,24 @@ void BM_Embree_packet(benchmark::State& state, Kind kind, bool coherent) {
         state.SkipWithError("fewer rays than one packet");
         return;
     }
+    // The packets built beforehand, as the wavefront builds its own (RayPacket::set per ray).
+    std::vector<RayPacket> ray_packets(packets);
+    for (std::size_t q = 0; q < packets; ++q) {
+        ray_packets[q].count = static_cast<int>(kPacket);
+        for (std::size_t k = 0; k < kPacket; ++k)
+            ray_packets[q].set(static_cast<int>(k), rays[q * kPacket + k]);
+    }
     std::size_t p = packets / 2 * static_cast<std::size_t>(state.thread_index()) % packets;
-    std::array<RayHit, kPacket> hits;
+    HitPacket hits;
     std::array<bool, kPacket> blocked;
     std::int64_t hit_count = 0;
     for (auto _ : state) {
-        const std::span<const Ray> packet(rays.data() + p * kPacket, kPacket);
         if (kind == Kind::Shadow) {
-            accelerator.occluded_packet(packet, blocked);
+            accelerator.occluded_packet(ray_packets[p], blocked);
             for (const bool b : blocked) hit_count += b ? 1 : 0;
         } else {
-            accelerator.intersect_packet(packet, hits, coherent);
-            for (const RayHit& h : hits) hit_count += h.valid() ? 1 : 0;
+            accelerator.intersect_packet(ray_packets[p], hits, coherent);
+            for (const std::int32_t shape : hits.shape) hit_count += shape >= 0 ? 1 : 0;
         }
         if (++p == packets) p = 0;
     }

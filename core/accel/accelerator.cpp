@@ -4,6 +4,7 @@
 #include <embree3/rtcore.h>
 
 #include <algorithm>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -124,22 +125,20 @@ bool Accelerator::occluded(const Ray& ray) const {
 
 namespace {
 
-/// Fills the first rays.size() lanes of `packet` from `rays` and marks them valid; the other
-/// lanes repeat the last ray (so that they hold finite numbers) and are masked off.
-void fill_packet(std::span<const Ray> rays, int (&valid)[Accelerator::kPacketSize],
-                 RTCRay16& packet) {
-    const int count = static_cast<int>(rays.size());
+/// Copies `rays` into Embree's packet, whole arrays at a time, and sets `valid` to its count.
+void fill_packet(const RayPacket& rays, int (&valid)[Accelerator::kPacketSize], RTCRay16& packet) {
+    constexpr std::size_t kBytes = sizeof(RayPacket::Lanes);
+    static_assert(sizeof(packet.org_x) == kBytes);
+    std::memcpy(packet.org_x, rays.origin_x.data(), kBytes);
+    std::memcpy(packet.org_y, rays.origin_y.data(), kBytes);
+    std::memcpy(packet.org_z, rays.origin_z.data(), kBytes);
+    std::memcpy(packet.dir_x, rays.direction_x.data(), kBytes);
+    std::memcpy(packet.dir_y, rays.direction_y.data(), kBytes);
+    std::memcpy(packet.dir_z, rays.direction_z.data(), kBytes);
+    std::memcpy(packet.tfar, rays.t_max.data(), kBytes);
     for (int i = 0; i < Accelerator::kPacketSize; ++i) {
-        valid[i] = i < count ? -1 : 0;
-        const Ray& ray = rays[static_cast<std::size_t>(std::min(i, count - 1))];
-        packet.org_x[i] = ray.origin.x();
-        packet.org_y[i] = ray.origin.y();
-        packet.org_z[i] = ray.origin.z();
-        packet.dir_x[i] = ray.direction.x();
-        packet.dir_y[i] = ray.direction.y();
-        packet.dir_z[i] = ray.direction.z();
+        valid[i] = i < rays.count ? -1 : 0;
         packet.tnear[i] = 0.f;
-        packet.tfar[i] = ray.t_max;
         packet.mask[i] = ~0u;
         packet.flags[i] = 0;
         packet.time[i] = 0.f;
@@ -148,10 +147,8 @@ void fill_packet(std::span<const Ray> rays, int (&valid)[Accelerator::kPacketSiz
 
 }  // namespace
 
-void Accelerator::intersect_packet(std::span<const Ray> rays, std::span<RayHit> hits,
-                                   bool coherent) const {
-    const int count = static_cast<int>(rays.size());
-    if (count == 0) return;
+void Accelerator::intersect_packet(const RayPacket& rays, HitPacket& hits, bool coherent) const {
+    if (rays.count <= 0) return;
     alignas(64) int valid[kPacketSize];
     alignas(64) RTCRayHit16 packet;
     fill_packet(rays, valid, packet.ray);
@@ -163,20 +160,19 @@ void Accelerator::intersect_packet(std::span<const Ray> rays, std::span<RayHit> 
     rtcInitIntersectContext(&context);  // flags: RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT
     if (coherent) context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     rtcIntersect16(valid, impl_->scene, &context, &packet);
-    for (int i = 0; i < count; ++i) {
-        RayHit& hit = hits[static_cast<std::size_t>(i)];
-        hit = RayHit{};
-        if (packet.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
-        hit.t = packet.ray.tfar[i];
-        hit.barycentric = Vec2f(packet.hit.u[i], packet.hit.v[i]);
-        hit.shape = static_cast<std::int32_t>(packet.hit.geomID[i]);
-        hit.primitive = packet.hit.primID[i];
-    }
+    constexpr std::size_t kBytes = sizeof(hits.t);
+    std::memcpy(hits.t.data(), packet.ray.tfar, kBytes);
+    std::memcpy(hits.u.data(), packet.hit.u, kBytes);
+    std::memcpy(hits.v.data(), packet.hit.v, kBytes);
+    std::memcpy(hits.primitive.data(), packet.hit.primID, kBytes);
+    // RTC_INVALID_GEOMETRY_ID is ~0u: -1 as a shape index, "no hit".
+    static_assert(static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID) == -1);
+    std::memcpy(hits.shape.data(), packet.hit.geomID, kBytes);
 }
 
-void Accelerator::occluded_packet(std::span<const Ray> rays, std::span<bool> occluded) const {
-    const int count = static_cast<int>(rays.size());
-    if (count == 0) return;
+void Accelerator::occluded_packet(const RayPacket& rays,
+                                  std::array<bool, kPacketSize>& occluded) const {
+    if (rays.count <= 0) return;
     alignas(64) int valid[kPacketSize];
     alignas(64) RTCRay16 packet;
     fill_packet(rays, valid, packet);
@@ -184,7 +180,8 @@ void Accelerator::occluded_packet(std::span<const Ray> rays, std::span<bool> occ
     rtcInitIntersectContext(&context);
     rtcOccluded16(valid, impl_->scene, &context, &packet);
     // Embree sets tfar to -inf when the ray is blocked.
-    for (int i = 0; i < count; ++i) occluded[static_cast<std::size_t>(i)] = packet.tfar[i] < 0.f;
+    for (int i = 0; i < kPacketSize; ++i)
+        occluded[static_cast<std::size_t>(i)] = packet.tfar[i] < 0.f;
 }
 
 }  // namespace gdmlt

@@ -99,8 +99,8 @@ struct Wavefront {
         if (!diffuse) diffuse.emplace(scene);  // a wavefront lives for one render
         active.clear();
         for (std::uint32_t i = 0; i < lanes.size(); ++i) active.push_back(i);
-        std::array<Ray, kPacket> rays;
-        std::array<RayHit, kPacket> hits;
+        RayPacket rays;
+        HitPacket hits;
         std::array<bool, kPacket> blocked;
         // The first rays of a batch are camera rays, and consecutive lanes are samples of one
         // pixel (or, at one sample per pixel, of neighbouring pixels): coherent packets, which
@@ -114,21 +114,23 @@ struct Wavefront {
             streams.next_floats(active.size(), kDimensionsPerBounce, numbers);
             for (std::size_t first = 0; first < active.size(); first += kPacket) {
                 const std::size_t count = std::min<std::size_t>(kPacket, active.size() - first);
+                rays.count = static_cast<int>(count);
                 for (std::size_t k = 0; k < count; ++k)
-                    rays[k] = lanes[active[first + k]].state.ray;
-                scene.intersect_packet(std::span(rays.data(), count), hits, camera_rays);
+                    rays.set(static_cast<int>(k), lanes[active[first + k]].state.ray);
+                scene.intersect_packet(rays, hits, camera_rays);
                 for (std::size_t k = 0; k < count; ++k) {
                     const std::uint32_t index = active[first + k];
                     WavefrontLane& lane = lanes[index];
                     const VertexNumbers u = vertex_numbers(first + k);
                     // The most common vertex, a flat diffuse surface that does not emit, goes
                     // to the lanes without a SurfaceInteraction.
-                    if (hits[k].valid() && diffuse->handles_hit(hits[k].shape)) {
+                    const RayHit hit = hits.hit(static_cast<int>(k));
+                    if (hit.valid() && diffuse->handles_hit(hit.shape)) {
                         if (begin_vertex_without_emission(path, lane.state))
-                            diffuse->push_hit(index, hits[k], u, lane.state, path);
+                            diffuse->push_hit(index, hit, u, lane.state, path);
                         continue;
                     }
-                    const SurfaceInteraction si = scene.interaction(rays[k], hits[k]);
+                    const SurfaceInteraction si = scene.interaction(lane.state.ray, hit);
                     if (!begin_vertex(scene, si, path, lane.state)) continue;
                     if (diffuse->handles(si)) {
                         diffuse->push(index, si, u, lane.state, path);
@@ -155,8 +157,10 @@ struct Wavefront {
             // terms in the order sample_path_radiance does.
             for (std::size_t first = 0; first < shadow_count; first += kPacket) {
                 const std::size_t count = std::min<std::size_t>(kPacket, shadow_count - first);
-                for (std::size_t k = 0; k < count; ++k) rays[k] = shadows[first + k].ray.shadow;
-                scene.occluded_packet(std::span(rays.data(), count), blocked);
+                rays.count = static_cast<int>(count);
+                for (std::size_t k = 0; k < count; ++k)
+                    rays.set(static_cast<int>(k), shadows[first + k].ray.shadow);
+                scene.occluded_packet(rays, blocked);
                 // Without branches: whether a shadow ray is blocked, and below whether a path
                 // goes on, are as random as the paths (a branch on them mispredicts often).
                 // Adding +0 leaves a radiance unchanged (a -0 component would become +0:

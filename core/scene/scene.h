@@ -132,11 +132,11 @@ class Scene {
     /// Packets of up to Accelerator::kPacketSize rays traced together; turn each hit into an
     /// interaction with interaction(ray, hit) (the same as intersect(ray) gives). `coherent`:
     /// see Accelerator::intersect_packet.
-    void intersect_packet(std::span<const Ray> rays, std::span<RayHit> hits,
-                          bool coherent = false) const {
+    void intersect_packet(const RayPacket& rays, HitPacket& hits, bool coherent = false) const {
         accelerator_->intersect_packet(rays, hits, coherent);
     }
-    void occluded_packet(std::span<const Ray> rays, std::span<bool> occluded) const {
+    void occluded_packet(const RayPacket& rays,
+                         std::array<bool, Accelerator::kPacketSize>& occluded) const {
         accelerator_->occluded_packet(rays, occluded);
     }
     /// Full differential geometry at `hit`, found along `ray`; invalid() for a miss.

@@ -51,7 +51,12 @@ std::vector<Reference> diffuse_vertices(const Scene& scene, const DiffuseLanes& 
         PathState state = start_path(scene.camera().generate_ray(film_position), counters);
         while (state.active && out.size() < wanted) {
             Reference r;
-            scene.intersect_packet(std::span(&state.ray, 1), std::span(&r.hit, 1));
+            RayPacket packet;  // one ray, traced as the wavefront traces: in a packet
+            packet.set(0, state.ray);
+            packet.count = 1;
+            HitPacket hits;
+            scene.intersect_packet(packet, hits);
+            r.hit = hits.hit(0);
             const SurfaceInteraction si = scene.interaction(state.ray, r.hit);
             r.si = si;
             r.u = draw_vertex_numbers(stream);
