@@ -60,10 +60,16 @@ struct PixelSample {
     IndependentStream stream;
     Vec2f film_position;
 };
+/// The first identifier of pixel_sample's streams for crop-window pixel (x, y): the pixel's
+/// row-major index in the full film (the second is the sample's index).
+inline std::uint64_t pixel_stream_id(const Film& film, int x, int y) {
+    return static_cast<std::uint64_t>(y + film.crop_offset_y) * film.width +
+           static_cast<std::uint64_t>(x + film.crop_offset_x);
+}
 inline PixelSample pixel_sample(const Film& film, std::uint64_t seed, int x, int y, int index) {
     const int film_x = x + film.crop_offset_x, film_y = y + film.crop_offset_y;
-    const auto pixel = static_cast<std::uint64_t>(film_y) * film.width + film_x;
-    PixelSample s{IndependentStream(derive_stream(seed, pixel, static_cast<std::uint64_t>(index))),
+    PixelSample s{IndependentStream(derive_stream(seed, pixel_stream_id(film, x, y),
+                                                  static_cast<std::uint64_t>(index))),
                   Vec2f::Zero()};
     const Vec2f jitter = s.stream.next_2d();
     s.film_position =

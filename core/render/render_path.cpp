@@ -192,9 +192,7 @@ struct Wavefront {
     /// random stream and camera ray.
     void queue(const Film& film, int x, int y, int sample) {
         const std::size_t i = lanes.size();
-        // pixel_sample's stream identifiers: the pixel's full-film index and the sample's.
-        pixel_keys[i] = static_cast<std::uint64_t>(y + film.crop_offset_y) * film.width +
-                        static_cast<std::uint64_t>(x + film.crop_offset_x);
+        pixel_keys[i] = pixel_stream_id(film, x, y);  // pixel_sample's stream identifiers
         sample_keys[i] = static_cast<std::uint64_t>(sample);
         lanes.push_back(WavefrontLane{x, y, {}});
     }

@@ -9,6 +9,7 @@
 namespace gdmlt {
 
 /// Mixes 64 bits into 64 well-distributed bits (the SplitMix64 finaliser, Steele et al. 2014).
+/// PcgLanes' kernel repeats it on vectors (mix_bits_lanes, core/sampling/pcg_lanes_kernel.inc).
 constexpr std::uint64_t mix_bits(std::uint64_t v) {
     v ^= v >> 30;
     v *= 0xbf58476d1ce4e5b9ULL;
@@ -18,10 +19,12 @@ constexpr std::uint64_t mix_bits(std::uint64_t v) {
     return v;
 }
 
-/// A stream key from a global seed and one or two identifiers (pixel index, pass, chain id).
-/// (PcgLanes::seed_samples repeats it in SIMD lanes, with these two constants.)
+/// The constants derive_stream mixes into the seed and the first identifier (named, because
+/// PcgLanes::seed_samples repeats derive_stream in SIMD lanes).
 inline constexpr std::uint64_t kStreamSeedSalt = 0x9e3779b97f4a7c15ULL;
 inline constexpr std::uint64_t kStreamIdSalt = 0x632be59bd9b4e019ULL;
+
+/// A stream key from a global seed and one or two identifiers (pixel index, pass, chain id).
 constexpr std::uint64_t derive_stream(std::uint64_t seed, std::uint64_t id_a,
                                       std::uint64_t id_b = 0) {
     return mix_bits(mix_bits(seed ^ kStreamSeedSalt) ^ mix_bits(id_a + kStreamIdSalt) ^
