@@ -3,7 +3,6 @@
 
 #include <embree3/rtcore.h>
 
-#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 #include <string>

@@ -66,14 +66,18 @@ inline std::uint64_t pixel_stream_id(const Film& film, int x, int y) {
     return static_cast<std::uint64_t>(y + film.crop_offset_y) * film.width +
            static_cast<std::uint64_t>(x + film.crop_offset_x);
 }
+/// Full-film position of crop-window pixel (x, y)'s corner plus `jitter` (in [0, 1)²).
+inline Vec2f jittered_film_position(const Film& film, int x, int y, float jitter_x,
+                                    float jitter_y) {
+    return {static_cast<float>(x + film.crop_offset_x) + jitter_x,
+            static_cast<float>(y + film.crop_offset_y) + jitter_y};
+}
 inline PixelSample pixel_sample(const Film& film, std::uint64_t seed, int x, int y, int index) {
-    const int film_x = x + film.crop_offset_x, film_y = y + film.crop_offset_y;
     PixelSample s{IndependentStream(derive_stream(seed, pixel_stream_id(film, x, y),
                                                   static_cast<std::uint64_t>(index))),
                   Vec2f::Zero()};
     const Vec2f jitter = s.stream.next_2d();
-    s.film_position =
-        Vec2f(static_cast<float>(film_x) + jitter.x(), static_cast<float>(film_y) + jitter.y());
+    s.film_position = jittered_film_position(film, x, y, jitter.x(), jitter.y());
     return s;
 }
 

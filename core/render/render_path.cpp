@@ -208,8 +208,10 @@ struct Wavefront {
         streams.seed_samples(count, seed, pixel_keys, sample_keys);
         streams.next_floats(count, 2, numbers);  // the jitter: pixel_sample's next_2d
         for (std::size_t i = 0; i < count; ++i) {
-            film_x[i] = static_cast<float>(lanes[i].x + film.crop_offset_x) + numbers[0][i];
-            film_y[i] = static_cast<float>(lanes[i].y + film.crop_offset_y) + numbers[1][i];
+            const Vec2f position =
+                jittered_film_position(film, lanes[i].x, lanes[i].y, numbers[0][i], numbers[1][i]);
+            film_x[i] = position.x();
+            film_y[i] = position.y();
         }
         camera.generate_rays(std::span(film_x.data(), count), std::span(film_y.data(), count),
                              queued_rays);
