@@ -87,6 +87,7 @@ struct RenderOptions {
     std::string shift;
     // GDMLT knobs.
     std::optional<double> primal_weight;
+    std::optional<double> target_exponent;
     std::optional<int> very_direct_samples;
     std::optional<double> bootstrap_error;
     std::optional<bool> primal_from_offsets;
@@ -495,6 +496,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     // --spp gives a budget of as many proposals per pixel.
     if (!options.mpp && options.spp > 0) settings.mutations_per_pixel = options.spp;
     if (options.primal_weight) settings.primal_weight = *options.primal_weight;
+    if (options.target_exponent) settings.target_exponent = *options.target_exponent;
     if (options.very_direct_samples) settings.very_direct_samples = *options.very_direct_samples;
     if (options.bootstrap_error) settings.bootstrap_relative_error = *options.bootstrap_error;
     if (options.primal_from_offsets) settings.primal_from_offsets = *options.primal_from_offsets;
@@ -525,6 +527,7 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
                 {"shift", shift},
                 {"neighbours", setup.config},
                 {"primal_weight", settings.primal_weight},
+                {"target_exponent", settings.target_exponent},
                 {"primal_from_offsets", settings.primal_from_offsets},
                 {"normalise_link_count", settings.normalise_link_count},
                 {"bidirectional", settings.bidirectional},
@@ -939,6 +942,10 @@ int main(int argc, char** argv) {
     render_cmd
         ->add_option("--primal-weight", render.primal_weight,
                      "GDMLT: weight w of the primal in the target sum|D| + w Y(C) (1)")
+        ->check(finite_number());
+    render_cmd
+        ->add_option("--target-exponent", render.target_exponent,
+                     "GDMLT: the chain samples (sum|D| + w Y(C))^gamma, gamma in (0, 1] (1)")
         ->check(finite_number());
     render_cmd->add_option("--primal-from-offsets", render.primal_from_offsets,
                            "GDMLT: primal also from the neighbours' offset paths (G-PT's MIS "

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <utility>
 
 #include "core/math/stopwatch.h"
@@ -48,6 +49,7 @@ struct Chain {
     std::uint64_t streak = 0, longest_streak = 0;
     double brightness_sum = 0.0;
     std::uint64_t iterations = 0;
+    std::uint64_t round_iterations = 0;  // in the last round (fewer than asked after Ctrl-C)
     std::uint64_t large_proposed = 0, large_accepted = 0, small_proposed = 0, small_accepted = 0;
     std::uint64_t nonfinite = 0;
     ChainCounters counters;
@@ -58,7 +60,53 @@ struct Chain {
     // of Kelemen's large-step part (independent of b).
     std::vector<QueuedSplat> queue, large_queue;
     std::vector<std::uint32_t> visits;  // density slot of the state after each iteration
+    // With batch variance: this round's splats summed per slot (sorted by slot), both parts.
+    std::vector<std::pair<std::uint32_t, RgbD>> batch;
 };
+
+/// Per slot, what batch means need (ChainRunnerOutput::variance): sum_b x_b^2 (summed over
+/// the channels), sum_b n_b x_b, and how many batches splatted into it.
+struct BatchSums {
+    std::vector<double> squares;
+    std::vector<RgbD> weighted;
+    std::vector<std::uint32_t> batches;
+    double batch_size_squares = 0.0;  // sum_b n_b^2 over every batch, splatting or not
+    std::uint64_t batch_count = 0;
+
+    explicit BatchSums(std::size_t slots)
+        : squares(slots, 0.0), weighted(slots, RgbD::Zero()), batches(slots, 0) {}
+};
+
+/// A chain's round as one batch: its queued splats (the chain part weighted with the
+/// bootstrap's b, which differs from the final b by b's error only) summed per slot.
+void sum_batch(Chain& chain) {
+    chain.batch.clear();
+    for (const std::vector<QueuedSplat>* queue : {&chain.queue, &chain.large_queue})
+        for (const QueuedSplat& q : *queue)
+            chain.batch.emplace_back(
+                q.slot, RgbD(q.value[0], q.value[1], q.value[2]));
+    // Stable: equal slots keep queue order, so every sum is the same at any thread count.
+    std::stable_sort(chain.batch.begin(), chain.batch.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::size_t out = 0;
+    for (std::size_t i = 0; i < chain.batch.size(); ++i) {
+        if (out > 0 && chain.batch[out - 1].first == chain.batch[i].first)
+            chain.batch[out - 1].second += chain.batch[i].second;
+        else
+            chain.batch[out++] = chain.batch[i];
+    }
+    chain.batch.resize(out);
+}
+
+void add_batch(const Chain& chain, double batch_size, BatchSums& sums) {
+    for (const auto& [slot, x] : chain.batch) {
+        sums.squares[slot] += x.square().sum();
+        sums.weighted[slot] += batch_size * x;
+        ++sums.batches[slot];
+    }
+    sums.batch_size_squares += batch_size * batch_size;
+    ++sums.batch_count;
+}
 
 void evaluate_state(const ChainTarget& target, SampleStream& stream, ChainState& state,
                     ChainCounters& counters) {
@@ -395,6 +443,8 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
                                                   static_cast<std::uint64_t>(chain_count) - 1) /
                                                      static_cast<std::uint64_t>(chain_count);
     const bool track_density = !visits.empty();
+    std::optional<BatchSums> batch_sums;
+    if (settings.batch_variance) batch_sums.emplace(accumulated.size());
     std::uint64_t per_chain_done = 0;
     std::uint64_t round_size = timed ? 64 : std::min<std::uint64_t>(per_chain_budget, 1024);
     while (per_chain_done < per_chain_budget && !cancelled()) {
@@ -402,10 +452,16 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
         const std::uint64_t this_round = std::min(round_size, per_chain_budget - per_chain_done);
         const Clock::time_point round_start = Clock::now();
         tbb::parallel_for(0, chain_count, [&](int c) {
-            run_chain(chains[static_cast<std::size_t>(c)], target, settings, stats.b_bootstrap,
-                      this_round, track_density, cancel);
+            Chain& chain = chains[static_cast<std::size_t>(c)];
+            const std::uint64_t before = chain.iterations;
+            run_chain(chain, target, settings, stats.b_bootstrap, this_round, track_density,
+                      cancel);
+            chain.round_iterations = chain.iterations - before;
+            if (batch_sums) sum_batch(chain);
         });
         for (Chain& chain : chains) {
+            if (batch_sums && chain.round_iterations > 0)
+                add_batch(chain, static_cast<double>(chain.round_iterations), *batch_sums);
             merge_queue(chain.queue, accumulated);
             if (!chain.large_queue.empty() && accumulated_large.empty())
                 accumulated_large.assign(accumulated.size(), RgbD::Zero());
@@ -478,6 +534,24 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
         const MeanEstimate b = mean_from_sums(sum, sum2, static_cast<double>(stats.b_samples));
         stats.b = b.mean;
         stats.b_standard_error = b.standard_error;
+    }
+    if (batch_sums && stats.mutations > 0 && batch_sums->batch_count > 1) {
+        // Per channel sum_b (x_b - n_b S)^2 = sum x^2 - 2 S sum n x + S^2 sum n^2 with
+        // S = sum x / N, before the rescaling below (x holds both parts as splatted).
+        const double n = static_cast<double>(stats.mutations);
+        const double batches = static_cast<double>(batch_sums->batch_count);
+        const double scale = batches / (batches - 1.0) / (n * n) / 3.0;
+        out.variance.assign(accumulated.size(), std::numeric_limits<double>::infinity());
+        for (std::size_t i = 0; i < accumulated.size(); ++i) {
+            if (batch_sums->batches[i] < 2) continue;
+            const RgbD sum = accumulated_large.empty() ? accumulated[i]
+                                                       : RgbD(accumulated[i] + accumulated_large[i]);
+            const RgbD mean = sum / n;
+            const double deviations = batch_sums->squares[i] -
+                                      2.0 * (mean * batch_sums->weighted[i]).sum() +
+                                      mean.square().sum() * batch_sums->batch_size_squares;
+            out.variance[i] = std::max(deviations, 0.0) * scale;
+        }
     }
     if (stats.mutations > 0) {
         const double scale = 1.0 / static_cast<double>(stats.mutations);

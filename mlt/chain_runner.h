@@ -123,6 +123,8 @@ struct ChainRunnerSettings {
     /// Kelemen's MIS of large steps with the chain (Kelemen et al. 2002, sec. 5; unbiased with
     /// p_large > 0); false: Veach's expected values only (Veach 1997, sec. 11.5).
     bool kelemen_weights = true;
+    /// Estimate each slot's variance by batch means (ChainRunnerOutput::variance).
+    bool batch_variance = false;
 };
 
 struct ChainStats {
@@ -161,6 +163,16 @@ struct ChainStats {
 struct ChainRunnerOutput {
     /// Per slot: the integral over primary sample space of that slot's contributions.
     std::vector<RgbD> estimate;
+    /// With ChainRunnerSettings::batch_variance, per slot: the variance of `estimate`, the mean
+    /// over the three channels, by batch means (Geyer 1992; Jones et al. 2006): a batch is one
+    /// chain's splats in one round. Chains are independent and a round is a few hundred
+    /// mutations per chain, far longer than a chain's correlation with p_large 0.7, so batches
+    /// are treated as independent: Var(S) = sum_b (x_b - n_b S)^2 / N^2 * B / (B - 1) for the
+    /// estimate S = sum_b x_b / N of N mutations in B batches of n_b. +inf where fewer than two
+    /// batches splatted into the slot (nothing is known of its noise). The final rescaling to
+    /// b (run_chains) is one factor for the whole image and not included: b's own error is
+    /// ChainStats::b_standard_error. Empty without batch_variance or before any chain ran.
+    std::vector<double> variance;
     /// Per density slot: the fraction of chain states that lay there (sums to 1).
     std::vector<double> density;
     /// Per chain: the density slot of its final state (-1: none). Chains are independent, so

@@ -115,7 +115,9 @@ class GradientTarget final : public ChainTarget {
             return;
         }
         if (!(target > 0.0)) return;
-        state.target = target;
+        state.target = settings_.target_exponent == 1.0
+                           ? target
+                           : std::pow(target, settings_.target_exponent);
         const auto slot = [](std::size_t index) { return static_cast<std::uint32_t>(index); };
         if (settings_.primal_from_offsets && !links.empty()) {
             // G-PT's primal (mlt/gradient_sample.h, LinkEstimate): pixel i's share of each pair
@@ -262,6 +264,7 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
         settings.time_budget_s > 0.0 ? std::max(settings.time_budget_s - seconds_since(start), 1e-3)
                                      : 0.0);
     runner.bootstrap_relative_error = settings.bootstrap_relative_error;
+    runner.batch_variance = true;
     const GradientTarget target(scene, settings, neighbours);
     const ChainRunnerOutput chains = run_chains(target, runner, cancel, progress);
     const PathCounters direct_counters = out.stats.counters;
@@ -279,18 +282,28 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
     // No sample_count layer: reconstruction would read 1/count as the primal's variance, which
     // holds for independent samples, not for a chain's correlated, 1/f*-weighted ones (the
     // weighted control variates then gave a 2x too bright image on caustic_glass_light).
+    // The variances come from batch means over the chains' rounds instead (run_chains).
     out.sample_density = Image(width, height, 1);
     const std::size_t p_count = neighbours.pixel_count();
+    const bool with_variance = !chains.variance.empty();
+    // A slot's value is its estimate times the pixel count, its variance times its square.
+    const double variance_scale = pixels * pixels;
+    if (with_variance) b.primal_variance = Image(width, height, 1);
     for (std::size_t i = 0; i < p_count; ++i) {
         for (int c = 0; c < 3; ++c)
             b.primal.pixels[3 * i + static_cast<std::size_t>(c)] =
                 static_cast<float>(chains.estimate[i][c] * pixels);
         out.sample_density.pixels[i] = static_cast<float>(chains.density[i] * pixels);
+        if (with_variance)
+            b.primal_variance.pixels[i] = static_cast<float>(chains.variance[i] * variance_scale);
     }
     std::vector<RgbD> edge_differences(neighbours.edges().size());
-    for (std::size_t e = 0; e < edge_differences.size(); ++e)
+    std::vector<double> edge_variances(with_variance ? edge_differences.size() : 0);
+    for (std::size_t e = 0; e < edge_differences.size(); ++e) {
         edge_differences[e] = chains.estimate[p_count + e] * pixels;
-    store_edge_differences(neighbours, edge_differences, b);
+        if (with_variance) edge_variances[e] = chains.variance[p_count + e] * variance_scale;
+    }
+    store_edge_differences(neighbours, edge_differences, b, edge_variances);
     if (settings.bidirectional) {
         // Light tracing is not shifted: it joins the very direct layer, added after the solve.
         const std::size_t light_slots = p_count + neighbours.edges().size();
@@ -339,6 +352,7 @@ GdmltSettings gdmlt_settings_from_scene(const IntegratorSettings& integrator) {
     s.bootstrap_relative_error =
         props.get_float("bootstrap_relative_error", s.bootstrap_relative_error);
     s.primal_weight = props.get_float("primal_weight", s.primal_weight);
+    s.target_exponent = props.get_float("target_exponent", s.target_exponent);
     s.primal_from_offsets = props.get_bool("primal_from_offsets", s.primal_from_offsets);
     s.very_direct_samples = props.get_int32("very_direct_samples", s.very_direct_samples);
     s.bidirectional = props.get_bool("bidirectional", s.bidirectional);
@@ -360,6 +374,8 @@ void validate_gdmlt_settings(const GdmltSettings& s, const FileLoc& loc) {
         throw InputError(loc,
                          "primal_weight must be positive (the chain must reach every pixel "
                          "with light)");
+    if (!(s.target_exponent > 0.0 && s.target_exponent <= 1.0))
+        throw InputError(loc, "target_exponent must lie in (0, 1]");
     if (s.very_direct_samples < 1) throw InputError(loc, "very_direct_samples must be positive");
     if (s.shift_light_tracing && !s.bidirectional)
         throw InputError(loc, "shift_light_tracing needs bidirectional (no light tracing without)");

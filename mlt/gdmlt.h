@@ -63,6 +63,13 @@ struct GdmltSettings : MarkovChainSettings {
     /// but the primal layer's relMSE was 1.3-1.5x lower at w = 1 than at 0.25 (the primal
     /// carries the image's low frequencies and its energy), and no better at 4.
     double primal_weight = 1.0;
+    /// gamma: the chain's target is (f*)^gamma, not f*. Any positive power of f* covers what
+    /// f* covers, so the estimator stays unbiased (the splat weights divide by the target the
+    /// chain samples); gamma < 1 flattens the spikes of f* that a lucky large step finds (the
+    /// chain then stays in a few pixels for a long time: over-visits) and lowers the relative
+    /// variance of b = E[f*^gamma] over uniform samples, which sets the whole image's
+    /// brightness. 1 is Lehtinen et al.'s target.
+    double target_exponent = 1.0;
     /// The primal of every pixel from its own base paths and from the offsets of its
     /// neighbours' (G-PT's MIS between pixels), instead of from its own base paths only.
     /// Measured at 16 s, seeds 0-2: the primal layer's relMSE 2.2-2.7x lower on
