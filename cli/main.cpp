@@ -88,6 +88,7 @@ struct RenderOptions {
     // GDMLT knobs.
     std::optional<double> primal_weight;
     std::optional<double> target_exponent;
+    std::string gdpt_share;
     std::optional<int> very_direct_samples;
     std::optional<double> bootstrap_error;
     std::optional<bool> primal_from_offsets;
@@ -497,6 +498,8 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     if (!options.mpp && options.spp > 0) settings.mutations_per_pixel = options.spp;
     if (options.primal_weight) settings.primal_weight = *options.primal_weight;
     if (options.target_exponent) settings.target_exponent = *options.target_exponent;
+    if (!options.gdpt_share.empty())
+        settings.gdpt_share = options.gdpt_share == "auto" ? -1.0 : std::stod(options.gdpt_share);
     if (options.very_direct_samples) settings.very_direct_samples = *options.very_direct_samples;
     if (options.bootstrap_error) settings.bootstrap_relative_error = *options.bootstrap_error;
     if (options.primal_from_offsets) settings.primal_from_offsets = *options.primal_from_offsets;
@@ -518,38 +521,42 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
 
     IntegratorResult r;
     r.seed = settings.seed;
-    r.config = {{"integrator", "gdmlt"},
-                {"mutations_per_pixel", options.time_s > 0.0 && !options.mpp && options.spp == 0
-                                            ? json(nullptr)
-                                            : json(settings.mutations_per_pixel)},
-                {"time_budget_s", settings.time_budget_s},
-                {"seed", settings.seed},
-                {"shift", shift},
-                {"neighbours", setup.config},
-                {"primal_weight", settings.primal_weight},
-                {"target_exponent", settings.target_exponent},
-                {"primal_from_offsets", settings.primal_from_offsets},
-                {"normalise_link_count", settings.normalise_link_count},
-                {"bidirectional", settings.bidirectional},
-                {"bidirectional_auto", bidirectional_choice_json(choice)},
-                {"shift_light_tracing", settings.shift_light_tracing},
-                {"light_tracing_mis", settings.light_tracing_mis},
-                {"light_tracing_pass", settings.light_tracing_pass},
-                {"light_tracing_share", settings.light_tracing_share},
-                {"reconstruct", reconstruct::to_string(rc.method)},
-                {"alpha", rc.alpha},
-                {"coarse_radius", rc.coarse_radius},
-                {"huber", rc.huber_k},
-                {"p_large", settings.mutation.p_large},
-                {"mutation_size", {settings.mutation.s1, settings.mutation.s2}},
-                {"image_mutation_size_pixels", settings.mutation.image_s2_pixels},
-                {"chains", settings.chains},
-                {"bootstrap_samples", settings.bootstrap_samples},
-                {"bootstrap_relative_error", settings.bootstrap_relative_error},
-                {"very_direct_samples", settings.very_direct_samples},
-                {"kelemen_style_weights", settings.kelemen_weights},
-                {"max_depth", settings.path.max_depth},
-                {"hide_emitters", settings.path.hide_emitters}};
+    r.config = {
+        {"integrator", "gdmlt"},
+        {"mutations_per_pixel", options.time_s > 0.0 && !options.mpp && options.spp == 0
+                                    ? json(nullptr)
+                                    : json(settings.mutations_per_pixel)},
+        {"time_budget_s", settings.time_budget_s},
+        {"seed", settings.seed},
+        {"shift", shift},
+        {"neighbours", setup.config},
+        {"primal_weight", settings.primal_weight},
+        {"target_exponent", settings.target_exponent},
+        {"gdpt_share", settings.gdpt_share < 0.0 ? json("auto") : json(settings.gdpt_share)},
+        {"pilot_share", settings.pilot_share},
+        {"combine_radius", settings.combine_radius},
+        {"primal_from_offsets", settings.primal_from_offsets},
+        {"normalise_link_count", settings.normalise_link_count},
+        {"bidirectional", settings.bidirectional},
+        {"bidirectional_auto", bidirectional_choice_json(choice)},
+        {"shift_light_tracing", settings.shift_light_tracing},
+        {"light_tracing_mis", settings.light_tracing_mis},
+        {"light_tracing_pass", settings.light_tracing_pass},
+        {"light_tracing_share", settings.light_tracing_share},
+        {"reconstruct", reconstruct::to_string(rc.method)},
+        {"alpha", rc.alpha},
+        {"coarse_radius", rc.coarse_radius},
+        {"huber", rc.huber_k},
+        {"p_large", settings.mutation.p_large},
+        {"mutation_size", {settings.mutation.s1, settings.mutation.s2}},
+        {"image_mutation_size_pixels", settings.mutation.image_s2_pixels},
+        {"chains", settings.chains},
+        {"bootstrap_samples", settings.bootstrap_samples},
+        {"bootstrap_relative_error", settings.bootstrap_relative_error},
+        {"very_direct_samples", settings.very_direct_samples},
+        {"kelemen_style_weights", settings.kelemen_weights},
+        {"max_depth", settings.path.max_depth},
+        {"hide_emitters", settings.path.hide_emitters}};
     const Film& film = scene.camera().film();
     const mlt::GdmltOutput out = mlt::render_gdmlt(
         scene, settings,
@@ -565,6 +572,20 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     r.stats["very_direct_s"] = s.very_direct_s;
     r.stats["light_tracing_s"] = s.light_tracing_s;  // the light tracing pass (bidirectional)
     r.stats["light_paths"] = s.light_paths;
+    r.stats["budget_split"] = {{"mode", s.split.mode},
+                               {"decision", s.split.decision},
+                               {"reason", s.split.reason},
+                               {"gdpt_noise", s.split.gdpt_noise},
+                               {"chain_noise", s.split.chain_noise},
+                               {"gdpt_efficiency", s.split.gdpt_efficiency},
+                               {"chain_efficiency", s.split.chain_efficiency},
+                               {"slots_compared", s.split.slots_compared},
+                               {"cost_unit", s.split.cost_unit},
+                               {"gdpt_s", s.split.gdpt_s},
+                               {"gdpt_samples", s.split.gdpt_samples},
+                               {"parts", s.split.parts},
+                               {"primal_weights", s.split.primal_weights},
+                               {"difference_weights", s.split.difference_weights}};
     r.stats["reconstruct_s"] = solve_s;
     r.stats["proposals_per_s"] =
         s.chains_s > 0 ? static_cast<double>(s.mutations) / s.chains_s : 0.0;
@@ -947,6 +968,12 @@ int main(int argc, char** argv) {
         ->add_option("--target-exponent", render.target_exponent,
                      "GDMLT: the chain samples (sum|D| + w Y(C))^gamma, gamma in (0, 1] (1)")
         ->check(finite_number());
+    render_cmd
+        ->add_option("--gdpt-share", render.gdpt_share,
+                     "GDMLT: share of the budget for GDPT beside the chains, combined by "
+                     "inverse variance: auto (a pilot of each decides) | 0 (chains only) .. 1 "
+                     "(auto)")
+        ->check(CLI::IsMember({"auto"}) | CLI::Range(0.0, 1.0));
     render_cmd->add_option("--primal-from-offsets", render.primal_from_offsets,
                            "GDMLT: primal also from the neighbours' offset paths (G-PT's MIS "
                            "between pixels): true | false");

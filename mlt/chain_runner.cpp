@@ -83,8 +83,7 @@ void sum_batch(Chain& chain) {
     chain.batch.clear();
     for (const std::vector<QueuedSplat>* queue : {&chain.queue, &chain.large_queue})
         for (const QueuedSplat& q : *queue)
-            chain.batch.emplace_back(
-                q.slot, RgbD(q.value[0], q.value[1], q.value[2]));
+            chain.batch.emplace_back(q.slot, RgbD(q.value[0], q.value[1], q.value[2]));
     // Stable: equal slots keep queue order, so every sum is the same at any thread count.
     std::stable_sort(chain.batch.begin(), chain.batch.end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
@@ -544,8 +543,9 @@ ChainRunnerOutput run_chains(const ChainTarget& target, const ChainRunnerSetting
         out.variance.assign(accumulated.size(), std::numeric_limits<double>::infinity());
         for (std::size_t i = 0; i < accumulated.size(); ++i) {
             if (batch_sums->batches[i] < 2) continue;
-            const RgbD sum = accumulated_large.empty() ? accumulated[i]
-                                                       : RgbD(accumulated[i] + accumulated_large[i]);
+            const RgbD sum = accumulated_large.empty()
+                                 ? accumulated[i]
+                                 : RgbD(accumulated[i] + accumulated_large[i]);
             const RgbD mean = sum / n;
             const double deviations = batch_sums->squares[i] -
                                       2.0 * (mean * batch_sums->weighted[i]).sum() +

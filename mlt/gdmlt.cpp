@@ -8,12 +8,14 @@
 #include <iostream>
 #include <stdexcept>
 
+#include "core/image/combine_buffers.h"
 #include "core/math/stopwatch.h"
 #include "core/render/render_path.h"
 #include "core/render/render_ptracer.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/sample_stream.h"
 #include "core/scene/properties.h"
+#include "mlt/gdpt.h"
 #include "mlt/gradient_sample.h"
 
 namespace gdmlt::mlt {
@@ -115,9 +117,8 @@ class GradientTarget final : public ChainTarget {
             return;
         }
         if (!(target > 0.0)) return;
-        state.target = settings_.target_exponent == 1.0
-                           ? target
-                           : std::pow(target, settings_.target_exponent);
+        state.target =
+            settings_.target_exponent == 1.0 ? target : std::pow(target, settings_.target_exponent);
         const auto slot = [](std::size_t index) { return static_cast<std::uint32_t>(index); };
         if (settings_.primal_from_offsets && !links.empty()) {
             // G-PT's primal (mlt/gradient_sample.h, LinkEstimate): pixel i's share of each pair
@@ -186,6 +187,114 @@ class GradientTarget final : public ChainTarget {
     const GdmltSettings& settings_;
     const NeighbourSet& neighbours_;
 };
+
+/// Stream families of the passes beside the main chains (the main chains keep the settings'
+/// seed, so that `gdpt_share 0` renders what GDMLT rendered before the split existed).
+constexpr std::uint64_t kGdptStreams = 0x6D97;
+constexpr std::uint64_t kPilotChainStreams = 0xC9170;
+
+/// What a part of the budget cost: wall time and rays traced.
+struct PartCost {
+    double seconds = 0.0;
+    std::uint64_t rays = 0;
+};
+
+/// The chains' estimate as buffers: each slot's integral over primary sample space times the
+/// pixel count (a pixel covers 1/P of the image plane), its variance times the count's square.
+struct ChainPart {
+    GradientBuffers buffers;  // primal, differences and their variances (no very direct)
+    Image sample_density;
+    Image light;  // bidirectional: the light tracing strategies' image (unshifted)
+    ChainStats stats;
+};
+
+ChainPart run_chains_into_buffers(const Scene& scene, const GdmltSettings& settings,
+                                  const NeighbourSet& neighbours, const ChainRunnerSettings& runner,
+                                  const std::atomic<bool>* cancel,
+                                  const std::function<void(double, double)>& progress) {
+    const int width = neighbours.width(), height = neighbours.height();
+    const auto pixels = static_cast<double>(width) * height;
+    const GradientTarget target(scene, settings, neighbours);
+    const ChainRunnerOutput chains = run_chains(target, runner, cancel, progress);
+    ChainPart part;
+    part.stats = chains.stats;
+    GradientBuffers& b = part.buffers;
+    b.primal = Image(width, height, 3);
+    // No sample_count layer: reconstruction would read 1/count as the primal's variance, which
+    // holds for independent samples, not for a chain's correlated, 1/f*-weighted ones (the
+    // weighted control variates then gave a 2x too bright image on caustic_glass_light).
+    // The variances come from batch means over the chains' rounds instead (run_chains).
+    part.sample_density = Image(width, height, 1);
+    const std::size_t p_count = neighbours.pixel_count();
+    const bool with_variance = !chains.variance.empty();
+    const double variance_scale = pixels * pixels;
+    if (with_variance) b.primal_variance = Image(width, height, 1);
+    for (std::size_t i = 0; i < p_count; ++i) {
+        for (int c = 0; c < 3; ++c)
+            b.primal.pixels[3 * i + static_cast<std::size_t>(c)] =
+                static_cast<float>(chains.estimate[i][c] * pixels);
+        part.sample_density.pixels[i] = static_cast<float>(chains.density[i] * pixels);
+        if (with_variance)
+            b.primal_variance.pixels[i] = static_cast<float>(chains.variance[i] * variance_scale);
+    }
+    std::vector<RgbD> edge_differences(neighbours.edges().size());
+    std::vector<double> edge_variances(with_variance ? edge_differences.size() : 0);
+    for (std::size_t e = 0; e < edge_differences.size(); ++e) {
+        edge_differences[e] = chains.estimate[p_count + e] * pixels;
+        if (with_variance) edge_variances[e] = chains.variance[p_count + e] * variance_scale;
+    }
+    store_edge_differences(neighbours, edge_differences, b, edge_variances);
+    part.light = Image(width, height, 3);
+    if (settings.bidirectional) {
+        const std::size_t light_slots = p_count + neighbours.edges().size();
+        for (std::size_t i = 0; i < p_count; ++i)
+            for (int c = 0; c < 3; ++c)
+                part.light.pixels[3 * i + static_cast<std::size_t>(c)] =
+                    static_cast<float>(chains.estimate[light_slots + i][c] * pixels);
+    }
+    return part;
+}
+
+/// The noise of two estimates of the same layers on a common scale: the sum over slots of
+/// each one's variance (leave-one-out window means, as the combination weighs them) over
+/// (I^2 + 0.01), I the channel mean of the first estimate's primal at the slot (the relMSE
+/// denominator of bench/metrics.py); edges weigh 1, primals kGdmltReconstructAlpha^2, the
+/// weight of each kind of row in the screened Poisson solve. Slots where either is unknown
+/// (+inf) are left out.
+struct NoiseMeasure {
+    double first = 0.0, second = 0.0;
+    std::uint64_t slots = 0;
+};
+NoiseMeasure measure_noise(const GradientBuffers& a, const GradientBuffers& b, int radius) {
+    NoiseMeasure m;
+    const int w = a.primal.width, h = a.primal.height;
+    std::vector<double> level(a.primal.pixel_count());
+    for (std::size_t i = 0; i < level.size(); ++i)
+        level[i] =
+            (a.primal.pixels[3 * i] + a.primal.pixels[3 * i + 1] + a.primal.pixels[3 * i + 2]) /
+            3.0;
+    const auto add = [&](const Image& va, const Image& vb, double row_weight, int dx, int dy) {
+        if (va.pixels.empty() || vb.pixels.empty()) return;
+        const std::vector<double> sa = leave_one_out_window_mean(va, radius);
+        const std::vector<double> sb = leave_one_out_window_mean(vb, radius);
+        for (int y = 0; y + dy < h; ++y)
+            for (int x = 0; x + dx < w; ++x) {
+                const std::size_t i = static_cast<std::size_t>(y) * w + x;
+                if (!std::isfinite(sa[i]) || !std::isfinite(sb[i])) continue;
+                const double l =
+                    0.5 * (level[i] + level[i + static_cast<std::size_t>(dy * w + dx)]);
+                const double scale = row_weight / (l * l + 0.01);
+                m.first += sa[i] * scale;
+                m.second += sb[i] * scale;
+                ++m.slots;
+            }
+    };
+    add(a.primal_variance, b.primal_variance, kGdmltReconstructAlpha * kGdmltReconstructAlpha, 0,
+        0);
+    add(a.dx_variance, b.dx_variance, 1.0, 1, 0);
+    add(a.dy_variance, b.dy_variance, 1.0, 0, 1);
+    return m;
+}
 
 }  // namespace
 
@@ -257,60 +366,178 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
         out.stats.light_tracing_s = seconds_since(pass_start);
     }
 
-    // 2. The chains.
-    // One chain per 1024 proposals (4096 bidirectional), at least 64 (GdmltSettings::chains).
-    ChainRunnerSettings runner = runner_settings(
-        settings, width, height, settings.bidirectional ? 4096 : 1024, 64,
-        settings.time_budget_s > 0.0 ? std::max(settings.time_budget_s - seconds_since(start), 1e-3)
-                                     : 0.0);
-    runner.bootstrap_relative_error = settings.bootstrap_relative_error;
-    runner.batch_variance = true;
-    const GradientTarget target(scene, settings, neighbours);
-    const ChainRunnerOutput chains = run_chains(target, runner, cancel, progress);
-    const PathCounters direct_counters = out.stats.counters;
-    const std::uint64_t direct_nonfinite = out.stats.nonfinite_dropped;
-    static_cast<ChainStats&>(out.stats) = chains.stats;
-    out.stats.counters += direct_counters;
-    out.stats.nonfinite_dropped += direct_nonfinite;
-    if (!(chains.stats.b > 0.0))
+    // 2. The gradient-domain estimates: the chains, and (unidirectional) GDPT passes, combined
+    //    by inverse variance (GdmltSettings::gdpt_share).
+    const bool timed = settings.time_budget_s > 0.0;
+    const auto remaining_s = [&] {
+        return std::max(settings.time_budget_s - seconds_since(start), 1e-3);
+    };
+    const double proposals = settings.mutations_per_pixel * pixels;
+    BudgetSplit& split = out.stats.split;
+    split.mode = settings.gdpt_share < 0.0 ? "auto" : "share";
+    double gdpt_share = settings.gdpt_share;
+    if (settings.bidirectional && gdpt_share != 0.0) {
+        // GDPT's samples are unidirectional: its primal holds light tracing's share too, which
+        // the bidirectional chain leaves to its very direct layer, so the two do not estimate
+        // the same layers.
+        gdpt_share = 0.0;
+        split.reason = "bidirectional: GDPT's layers are not the chain's";
+    }
+    std::vector<GradientBuffers> parts;
+    std::vector<std::string> part_names;
+    std::vector<std::pair<Image, Image>> gdpt_very_direct;  // (image, sample counts) per pass
+    ChainPart chain_part;
+    bool chains_ran = false;
+    const auto run_gdpt_part = [&](double share_of_remaining, double spp, std::uint64_t salt) {
+        GdptSettings g;
+        g.seed = derive_stream(settings.seed, kGdptStreams, salt);
+        g.path = settings.path;
+        g.shift = settings.shift;
+        if (timed) {
+            g.spp = std::numeric_limits<int>::max();
+            g.time_budget_s = share_of_remaining * remaining_s();
+        } else {
+            g.spp = std::max(2, static_cast<int>(std::llround(spp)));
+        }
+        const Clock::time_point pass_start = Clock::now();
+        GdptOutput pass = render_gdpt(scene, g, neighbours, cancel);
+        const double pass_s = seconds_since(pass_start);
+        split.gdpt_s += pass_s;
+        split.gdpt_samples += pass.stats.samples;
+        out.stats.counters += pass.stats.counters;
+        out.stats.shifts += pass.stats.shifts;
+        out.stats.nonfinite_dropped += pass.stats.nonfinite_dropped;
+        gdpt_very_direct.emplace_back(std::move(pass.buffers.very_direct),
+                                      std::move(pass.buffers.sample_count));
+        pass.buffers.sample_count = Image();
+        PartCost cost{pass_s, pass.stats.counters.rays()};
+        parts.push_back(std::move(pass.buffers));
+        part_names.push_back("gdpt");
+        return cost;
+    };
+    const auto run_chain_part = [&](double share_of_remaining, double mutations_per_pixel,
+                                    std::uint64_t seed, bool main) {
+        GdmltSettings c = settings;
+        c.seed = seed;
+        c.mutations_per_pixel = mutations_per_pixel;
+        // One chain per 1024 proposals (4096 bidirectional), at least 64
+        // (GdmltSettings::chains), counted from the whole budget (mutations_per_pixel).
+        ChainRunnerSettings runner =
+            runner_settings(settings, width, height, settings.bidirectional ? 4096 : 1024, 64,
+                            timed ? share_of_remaining * remaining_s() : 0.0);
+        if (!timed)
+            runner.mutations = static_cast<std::uint64_t>(
+                std::llround(std::max(mutations_per_pixel, 0.0) * pixels));
+        runner.seed = seed;
+        runner.bootstrap_relative_error = settings.bootstrap_relative_error;
+        runner.batch_variance = true;
+        const Clock::time_point pass_start = Clock::now();
+        ChainPart part = run_chains_into_buffers(scene, c, neighbours, runner, cancel,
+                                                 main ? progress : nullptr);
+        const double pass_s = seconds_since(pass_start);
+        PartCost cost{pass_s, part.stats.counters.rays()};
+        if (chains_ran) {
+            // Two chain runs: the stats of the main run, the work of both.
+            part.stats.counters += chain_part.stats.counters;
+            part.stats.shifts += chain_part.stats.shifts;
+        }
+        chains_ran = true;
+        parts.push_back(std::move(part.buffers));
+        part_names.push_back(main ? "chains" : "chains (pilot)");
+        chain_part = std::move(part);
+        return cost;
+    };
+
+    if (gdpt_share == 0.0) {
+        split.decision = "chains";
+        if (split.reason.empty()) split.reason = "gdpt_share 0";
+        run_chain_part(1.0, settings.mutations_per_pixel, settings.seed, true);
+    } else if (gdpt_share > 0.0) {
+        split.decision = gdpt_share >= 1.0 ? "gdpt" : "both";
+        split.reason = "gdpt_share given";
+        run_gdpt_part(gdpt_share, gdpt_share * settings.mutations_per_pixel, 0);
+        if (gdpt_share < 1.0 && !(cancel && cancel->load()))
+            run_chain_part(1.0, (1.0 - gdpt_share) * settings.mutations_per_pixel, settings.seed,
+                           true);
+    } else {
+        // Auto: a pilot of each, then the rest of the budget to the one that gave less noise
+        // for its cost (time with a time budget, else rays traced: deterministic).
+        const double pilot = settings.pilot_share;
+        const PartCost gdpt_cost = run_gdpt_part(pilot, pilot * settings.mutations_per_pixel, 0);
+        const PartCost chain_cost = run_chain_part(
+            timed ? pilot / (1.0 - pilot) : 1.0, pilot * settings.mutations_per_pixel,
+            derive_stream(settings.seed, kPilotChainStreams), false);
+        const NoiseMeasure noise = measure_noise(parts[0], parts[1], settings.combine_radius);
+        split.gdpt_noise = noise.first;
+        split.chain_noise = noise.second;
+        split.slots_compared = noise.slots;
+        const double gdpt_spent = timed ? gdpt_cost.seconds : static_cast<double>(gdpt_cost.rays);
+        const double chain_spent =
+            timed ? chain_cost.seconds : static_cast<double>(chain_cost.rays);
+        // Efficiency 1 / (noise x cost): the noise of a pass falls as 1 / its cost.
+        split.gdpt_efficiency = 1.0 / (noise.first * gdpt_spent);
+        split.chain_efficiency = 1.0 / (noise.second * chain_spent);
+        split.cost_unit = timed ? "s" : "rays";
+        const bool chains_win = split.chain_efficiency > split.gdpt_efficiency;
+        split.decision = chains_win ? "chains" : "gdpt";
+        split.reason = chains_win ? "the chains' pilot had the lower noise for its cost"
+                                  : "GDPT's pilot had the lower noise for its cost";
+        if (!(cancel && cancel->load())) {
+            const double rest = std::max(1.0 - 2.0 * pilot, 0.0) * settings.mutations_per_pixel;
+            if (chains_win)
+                run_chain_part(1.0, rest, settings.seed, true);
+            else
+                run_gdpt_part(1.0, rest, 1);
+        }
+    }
+
+    // Chain statistics (of the main run); the passes' work was added to the counters above.
+    const PathCounters pass_counters = out.stats.counters;
+    const manifold::ShiftCounters pass_shifts = out.stats.shifts;
+    const std::uint64_t pass_nonfinite = out.stats.nonfinite_dropped;
+    if (chains_ran) static_cast<ChainStats&>(out.stats) = chain_part.stats;
+    out.stats.counters += pass_counters;
+    out.stats.shifts += pass_shifts;
+    out.stats.nonfinite_dropped += pass_nonfinite;
+    if (chains_ran && !(chain_part.stats.b > 0.0))
         std::cerr << "gdmlt: every bootstrap sample had a zero target; only very direct light "
                      "remains\n";
+    out.sample_density =
+        chains_ran ? std::move(chain_part.sample_density) : Image(width, height, 1, 1.0f);
 
-    // 3. Buffers: each slot's integral over primary sample space times the pixel count (a pixel
-    //    covers 1/P of the image plane).
-    b.primal = Image(width, height, 3);
-    // No sample_count layer: reconstruction would read 1/count as the primal's variance, which
-    // holds for independent samples, not for a chain's correlated, 1/f*-weighted ones (the
-    // weighted control variates then gave a 2x too bright image on caustic_glass_light).
-    // The variances come from batch means over the chains' rounds instead (run_chains).
-    out.sample_density = Image(width, height, 1);
-    const std::size_t p_count = neighbours.pixel_count();
-    const bool with_variance = !chains.variance.empty();
-    // A slot's value is its estimate times the pixel count, its variance times its square.
-    const double variance_scale = pixels * pixels;
-    if (with_variance) b.primal_variance = Image(width, height, 1);
-    for (std::size_t i = 0; i < p_count; ++i) {
-        for (int c = 0; c < 3; ++c)
-            b.primal.pixels[3 * i + static_cast<std::size_t>(c)] =
-                static_cast<float>(chains.estimate[i][c] * pixels);
-        out.sample_density.pixels[i] = static_cast<float>(chains.density[i] * pixels);
-        if (with_variance)
-            b.primal_variance.pixels[i] = static_cast<float>(chains.variance[i] * variance_scale);
-    }
-    std::vector<RgbD> edge_differences(neighbours.edges().size());
-    std::vector<double> edge_variances(with_variance ? edge_differences.size() : 0);
-    for (std::size_t e = 0; e < edge_differences.size(); ++e) {
-        edge_differences[e] = chains.estimate[p_count + e] * pixels;
-        if (with_variance) edge_variances[e] = chains.variance[p_count + e] * variance_scale;
-    }
-    store_edge_differences(neighbours, edge_differences, b, edge_variances);
-    if (settings.bidirectional) {
-        // Light tracing is not shifted: it joins the very direct layer, added after the solve.
-        const std::size_t light_slots = p_count + neighbours.edges().size();
-        for (std::size_t i = 0; i < p_count; ++i)
+    // 3. The parts combined. Very direct light: the pass's and GDPT's, by sample counts.
+    Image very_direct = std::move(b.very_direct);
+    if (!gdpt_very_direct.empty()) {
+        const double pass_spp = std::max(settings.very_direct_samples, 1);
+        for (std::size_t i = 0; i < very_direct.pixel_count(); ++i) {
+            double n = pass_spp;
+            RgbD sum = RgbD::Zero();
+            for (int c = 0; c < 3; ++c) sum[c] = pass_spp * very_direct.pixels[3 * i + c];
+            for (const auto& [image, counts] : gdpt_very_direct) {
+                const double m = counts.pixels[i];
+                n += m;
+                for (int c = 0; c < 3; ++c) sum[c] += m * image.pixels[3 * i + c];
+            }
             for (int c = 0; c < 3; ++c)
-                b.very_direct.pixels[3 * i + static_cast<std::size_t>(c)] +=
-                    static_cast<float>(chains.estimate[light_slots + i][c] * pixels);
+                very_direct.pixels[3 * i + c] = static_cast<float>(sum[c] / n);
+        }
+    }
+    if (parts.size() == 1) {
+        b = std::move(parts.front());
+    } else {
+        std::vector<const GradientBuffers*> pointers;
+        for (const GradientBuffers& part : parts) pointers.push_back(&part);
+        CombineSummary summary;
+        b = combine_by_inverse_variance(pointers, settings.combine_radius, &summary);
+        split.primal_weights = summary.primal_weight;
+        split.difference_weights = summary.difference_weight;
+    }
+    split.parts = part_names;
+    b.very_direct = std::move(very_direct);
+    if (chains_ran && settings.bidirectional) {
+        // Light tracing is not shifted: it joins the very direct layer, added after the solve.
+        for (std::size_t i = 0; i < b.very_direct.pixels.size(); ++i)
+            b.very_direct.pixels[i] += chain_part.light.pixels[i];
     }
     out.stats.total_s = seconds_since(start);
     return out;
@@ -353,6 +580,9 @@ GdmltSettings gdmlt_settings_from_scene(const IntegratorSettings& integrator) {
         props.get_float("bootstrap_relative_error", s.bootstrap_relative_error);
     s.primal_weight = props.get_float("primal_weight", s.primal_weight);
     s.target_exponent = props.get_float("target_exponent", s.target_exponent);
+    s.gdpt_share = props.get_float("gdpt_share", s.gdpt_share);
+    s.pilot_share = props.get_float("pilot_share", s.pilot_share);
+    s.combine_radius = props.get_int32("combine_radius", s.combine_radius);
     s.primal_from_offsets = props.get_bool("primal_from_offsets", s.primal_from_offsets);
     s.very_direct_samples = props.get_int32("very_direct_samples", s.very_direct_samples);
     s.bidirectional = props.get_bool("bidirectional", s.bidirectional);
@@ -374,6 +604,12 @@ void validate_gdmlt_settings(const GdmltSettings& s, const FileLoc& loc) {
         throw InputError(loc,
                          "primal_weight must be positive (the chain must reach every pixel "
                          "with light)");
+    if (!(s.gdpt_share < 0.0 || s.gdpt_share <= 1.0) || !std::isfinite(s.gdpt_share))
+        throw InputError(loc, "gdpt_share must be negative (auto) or lie in [0, 1]");
+    if (!(s.pilot_share > 0.0 && s.pilot_share < 0.5))
+        throw InputError(loc, "pilot_share must lie in (0, 0.5)");
+    if (s.combine_radius < 1 || s.combine_radius > 64)
+        throw InputError(loc, "combine_radius must lie in [1, 64]");
     if (!(s.target_exponent > 0.0 && s.target_exponent <= 1.0))
         throw InputError(loc, "target_exponent must lie in (0, 1]");
     if (s.very_direct_samples < 1) throw InputError(loc, "very_direct_samples must be positive");

@@ -19,6 +19,8 @@
 // never shifted: a short path-traced pass renders it into its own layer, added after the solve.
 #include <atomic>
 #include <functional>
+#include <string>
+#include <vector>
 
 #include "core/image/gradient_buffers.h"
 #include "core/image/neighbour_set.h"
@@ -111,6 +113,18 @@ struct GdmltSettings : MarkovChainSettings {
     double light_tracing_share = 0.3;
     /// Without a time budget: the pass's light paths per pixel.
     int light_tracing_spp = 16;
+    /// The share of the sampling budget given to gradient-domain path tracing (GDPT: independent
+    /// samples, stratified per pixel) beside the chains; both estimate the same primal and
+    /// differences, and their layers are combined slot by slot with inverse-variance weights
+    /// (core/image/combine_buffers.h). < 0: auto: a pilot of each (pilot_share of the budget),
+    /// then the rest to the one with less noise for its cost (BudgetSplit). 0: chains only
+    /// (GDMLT as Lehtinen et al. built it); 1: GDPT only. Bidirectional sampling runs chains
+    /// only (GDPT's samples are unidirectional and its layers not the same).
+    double gdpt_share = -1.0;
+    /// Auto: each pilot's share of the sampling budget.
+    double pilot_share = 0.1;
+    /// Radius of the window whose variances weigh a slot in the combination.
+    int combine_radius = 3;
     /// Samples per pixel of the very direct pass (camera rays only, about 2% of a 16 s render
     /// at 256^2; fewer leave visible anti-aliasing noise on the edges of lights).
     int very_direct_samples = 64;
@@ -125,8 +139,27 @@ struct GdmltSettings : MarkovChainSettings {
 /// 0.0041; 0.4 and 0.8 were worse still, 0.1 in between.
 inline constexpr double kGdmltReconstructAlpha = 0.05;
 
+/// How the sampling budget was split between the chains and GDPT (GdmltSettings::gdpt_share).
+struct BudgetSplit {
+    std::string mode;      // "auto" or "share"
+    std::string decision;  // "chains", "gdpt" or "both"
+    std::string reason;
+    /// Auto: each pilot's noise (sum of variance over I^2 + 0.01 on slots both know), its
+    /// efficiency 1 / (noise x cost), cost in cost_unit ("s" with a time budget, else "rays").
+    double gdpt_noise = 0.0, chain_noise = 0.0;
+    double gdpt_efficiency = 0.0, chain_efficiency = 0.0;
+    std::uint64_t slots_compared = 0;
+    std::string cost_unit;
+    double gdpt_s = 0.0;
+    std::uint64_t gdpt_samples = 0;
+    /// The parts combined, in order, and each one's mean weight over pixels and edges.
+    std::vector<std::string> parts;
+    std::vector<double> primal_weights, difference_weights;
+};
+
 /// The chain runner's statistics plus GDMLT's own.
 struct GdmltStats : ChainStats {
+    BudgetSplit split;
     double very_direct_s = 0.0;
     /// The light tracing pass (GdmltSettings::light_tracing_pass): its time and light paths.
     double light_tracing_s = 0.0;
