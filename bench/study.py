@@ -546,6 +546,8 @@ class Study:
                               ("halfvector", ["--shift", "halfvector"]), ("replay", ["--shift", "replay"])]),
             ("primal weight w", [("1 (default)", []), ("0.25", ["--primal-weight", "0.25"]),
                                  ("4", ["--primal-weight", "4"])]),
+            ("budget split", [("auto (default)", []), ("chains only", ["--gdpt-share", "0"]),
+                              ("half GDPT", ["--gdpt-share", "0.5"]), ("GDPT only", ["--gdpt-share", "1"])]),
             ("large-step probability", [("0.7 (default)", []), ("0.3", ["--p-large", "0.3"])]),
             ("mutation size S1,S2", [("1/1024,1/64 (default)", []),
                                      ("1/256,1/16", ["--mutation-size", "0.00390625", "0.0625"])]),

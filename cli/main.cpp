@@ -87,7 +87,6 @@ struct RenderOptions {
     std::string shift;
     // GDMLT knobs.
     std::optional<double> primal_weight;
-    std::optional<double> target_exponent;
     std::string gdpt_share;
     std::optional<int> very_direct_samples;
     std::optional<double> bootstrap_error;
@@ -497,7 +496,6 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     // --spp gives a budget of as many proposals per pixel.
     if (!options.mpp && options.spp > 0) settings.mutations_per_pixel = options.spp;
     if (options.primal_weight) settings.primal_weight = *options.primal_weight;
-    if (options.target_exponent) settings.target_exponent = *options.target_exponent;
     if (!options.gdpt_share.empty())
         settings.gdpt_share = options.gdpt_share == "auto" ? -1.0 : std::stod(options.gdpt_share);
     if (options.very_direct_samples) settings.very_direct_samples = *options.very_direct_samples;
@@ -517,51 +515,55 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
     settings.shift = parse_shift(shift);
     mlt::validate_gdmlt_settings(settings, FileLoc{"command line", 0, 0});
     reconstruct::ReconstructConfig rc = reconstruct_config(options);
-    if (!options.alpha) rc.alpha = mlt::kGdmltReconstructAlpha;
 
+    const json gdpt_share_json =
+        settings.gdpt_share < 0.0 ? json("auto") : json(settings.gdpt_share);
     IntegratorResult r;
     r.seed = settings.seed;
-    r.config = {
-        {"integrator", "gdmlt"},
-        {"mutations_per_pixel", options.time_s > 0.0 && !options.mpp && options.spp == 0
-                                    ? json(nullptr)
-                                    : json(settings.mutations_per_pixel)},
-        {"time_budget_s", settings.time_budget_s},
-        {"seed", settings.seed},
-        {"shift", shift},
-        {"neighbours", setup.config},
-        {"primal_weight", settings.primal_weight},
-        {"target_exponent", settings.target_exponent},
-        {"gdpt_share", settings.gdpt_share < 0.0 ? json("auto") : json(settings.gdpt_share)},
-        {"pilot_share", settings.pilot_share},
-        {"combine_radius", settings.combine_radius},
-        {"primal_from_offsets", settings.primal_from_offsets},
-        {"normalise_link_count", settings.normalise_link_count},
-        {"bidirectional", settings.bidirectional},
-        {"bidirectional_auto", bidirectional_choice_json(choice)},
-        {"shift_light_tracing", settings.shift_light_tracing},
-        {"light_tracing_mis", settings.light_tracing_mis},
-        {"light_tracing_pass", settings.light_tracing_pass},
-        {"light_tracing_share", settings.light_tracing_share},
-        {"reconstruct", reconstruct::to_string(rc.method)},
-        {"alpha", rc.alpha},
-        {"coarse_radius", rc.coarse_radius},
-        {"huber", rc.huber_k},
-        {"p_large", settings.mutation.p_large},
-        {"mutation_size", {settings.mutation.s1, settings.mutation.s2}},
-        {"image_mutation_size_pixels", settings.mutation.image_s2_pixels},
-        {"chains", settings.chains},
-        {"bootstrap_samples", settings.bootstrap_samples},
-        {"bootstrap_relative_error", settings.bootstrap_relative_error},
-        {"very_direct_samples", settings.very_direct_samples},
-        {"kelemen_style_weights", settings.kelemen_weights},
-        {"max_depth", settings.path.max_depth},
-        {"hide_emitters", settings.path.hide_emitters}};
+    r.config = {{"integrator", "gdmlt"},
+                {"mutations_per_pixel", options.time_s > 0.0 && !options.mpp && options.spp == 0
+                                            ? json(nullptr)
+                                            : json(settings.mutations_per_pixel)},
+                {"time_budget_s", settings.time_budget_s},
+                {"seed", settings.seed},
+                {"shift", shift},
+                {"neighbours", setup.config},
+                {"primal_weight", settings.primal_weight},
+                {"gdpt_share", gdpt_share_json},
+                {"pilot_share", settings.pilot_share},
+                {"combine_radius", settings.combine_radius},
+                {"primal_from_offsets", settings.primal_from_offsets},
+                {"normalise_link_count", settings.normalise_link_count},
+                {"bidirectional", settings.bidirectional},
+                {"bidirectional_auto", bidirectional_choice_json(choice)},
+                {"shift_light_tracing", settings.shift_light_tracing},
+                {"light_tracing_mis", settings.light_tracing_mis},
+                {"light_tracing_pass", settings.light_tracing_pass},
+                {"light_tracing_share", settings.light_tracing_share},
+                {"reconstruct", reconstruct::to_string(rc.method)},
+                {"alpha", rc.alpha},
+                {"coarse_radius", rc.coarse_radius},
+                {"huber", rc.huber_k},
+                {"p_large", settings.mutation.p_large},
+                {"mutation_size", {settings.mutation.s1, settings.mutation.s2}},
+                {"image_mutation_size_pixels", settings.mutation.image_s2_pixels},
+                {"chains", settings.chains},
+                {"bootstrap_samples", settings.bootstrap_samples},
+                {"bootstrap_relative_error", settings.bootstrap_relative_error},
+                {"very_direct_samples", settings.very_direct_samples},
+                {"kelemen_style_weights", settings.kelemen_weights},
+                {"max_depth", settings.path.max_depth},
+                {"hide_emitters", settings.path.hide_emitters}};
     const Film& film = scene.camera().film();
     const mlt::GdmltOutput out = mlt::render_gdmlt(
         scene, settings,
         setup.adap ? *setup.adap : NeighbourSet::lattice(film.crop_width, film.crop_height),
         &g_interrupted, [&](double fraction, double elapsed) { bar.update(fraction, 0, elapsed); });
+    // alpha follows what the layers hold (chains alone, or GDPT passes among them).
+    if (!options.alpha) {
+        rc.alpha = mlt::reconstruct_alpha(out.stats.split);
+        r.config["alpha"] = rc.alpha;
+    }
     const double solve_s = solve_gradient_render(out.buffers, rc, r);
     r.extra_layers.push_back(ExrLayer{"sample_density", {"Y"}, out.sample_density});
     const mlt::GdmltStats& s = out.stats;
@@ -600,10 +602,12 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
 /// 282 (gdmlt; 202 with gdpt). Rounded up here by a quarter. PSSMLT's peak grew to 62 (128^2 to
 /// 1024^2) when the bootstrap's splats got their own sums (24 bytes per slot; GDMLT's peak is in
 /// its reconstruction, after they are freed): 78. Cli.TheMemoryEstimateIsAtLeastWhatEach...
-/// checks every estimate against a measured slope.
+/// checks every estimate against a measured slope. GDMLT's peak rose to 517 (128^2 to 384^2)
+/// with its variance layers (batch sums, 36 bytes per slot) and the GDPT passes of its budget
+/// split, whose buffers wait for the combination while the chains run: 650.
 double peak_bytes_per_pixel(const std::string& integrator, bool features, bool adap) {
     double bytes = integrator == "gdpt"                             ? 493.0
-                   : integrator == "gdmlt"                          ? 395.0
+                   : integrator == "gdmlt"                          ? 650.0
                    : integrator == "pssmlt" || integrator == "mmlt" ? 78.0
                    // The light tracer: measured 36 without an environment, which adds one
                    // more double RGB sum (24) for the camera rays that see it.
@@ -963,10 +967,6 @@ int main(int argc, char** argv) {
     render_cmd
         ->add_option("--primal-weight", render.primal_weight,
                      "GDMLT: weight w of the primal in the target sum|D| + w Y(C) (1)")
-        ->check(finite_number());
-    render_cmd
-        ->add_option("--target-exponent", render.target_exponent,
-                     "GDMLT: the chain samples (sum|D| + w Y(C))^gamma, gamma in (0, 1] (1)")
         ->check(finite_number());
     render_cmd
         ->add_option("--gdpt-share", render.gdpt_share,

@@ -117,8 +117,7 @@ class GradientTarget final : public ChainTarget {
             return;
         }
         if (!(target > 0.0)) return;
-        state.target =
-            settings_.target_exponent == 1.0 ? target : std::pow(target, settings_.target_exponent);
+        state.target = target;
         const auto slot = [](std::size_t index) { return static_cast<std::uint32_t>(index); };
         if (settings_.primal_from_offsets && !links.empty()) {
             // G-PT's primal (mlt/gradient_sample.h, LinkEstimate): pixel i's share of each pair
@@ -372,7 +371,6 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
     const auto remaining_s = [&] {
         return std::max(settings.time_budget_s - seconds_since(start), 1e-3);
     };
-    const double proposals = settings.mutations_per_pixel * pixels;
     BudgetSplit& split = out.stats.split;
     split.mode = settings.gdpt_share < 0.0 ? "auto" : "share";
     double gdpt_share = settings.gdpt_share;
@@ -543,6 +541,12 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
     return out;
 }
 
+double reconstruct_alpha(const BudgetSplit& split) {
+    for (const std::string& part : split.parts)
+        if (part == "gdpt") return kCombinedReconstructAlpha;
+    return kGdmltReconstructAlpha;
+}
+
 BidirectionalChoice choose_bidirectional(const Scene& scene) {
     // 4096 rays with fixed numbers: the choice is a deterministic function of the scene, and
     // the fraction's standard error (under 0.008) is far from mattering at a 0.5 threshold.
@@ -579,7 +583,6 @@ GdmltSettings gdmlt_settings_from_scene(const IntegratorSettings& integrator) {
     s.bootstrap_relative_error =
         props.get_float("bootstrap_relative_error", s.bootstrap_relative_error);
     s.primal_weight = props.get_float("primal_weight", s.primal_weight);
-    s.target_exponent = props.get_float("target_exponent", s.target_exponent);
     s.gdpt_share = props.get_float("gdpt_share", s.gdpt_share);
     s.pilot_share = props.get_float("pilot_share", s.pilot_share);
     s.combine_radius = props.get_int32("combine_radius", s.combine_radius);
@@ -610,8 +613,6 @@ void validate_gdmlt_settings(const GdmltSettings& s, const FileLoc& loc) {
         throw InputError(loc, "pilot_share must lie in (0, 0.5)");
     if (s.combine_radius < 1 || s.combine_radius > 64)
         throw InputError(loc, "combine_radius must lie in [1, 64]");
-    if (!(s.target_exponent > 0.0 && s.target_exponent <= 1.0))
-        throw InputError(loc, "target_exponent must lie in (0, 1]");
     if (s.very_direct_samples < 1) throw InputError(loc, "very_direct_samples must be positive");
     if (s.shift_light_tracing && !s.bidirectional)
         throw InputError(loc, "shift_light_tracing needs bidirectional (no light tracing without)");

@@ -65,13 +65,6 @@ struct GdmltSettings : MarkovChainSettings {
     /// but the primal layer's relMSE was 1.3-1.5x lower at w = 1 than at 0.25 (the primal
     /// carries the image's low frequencies and its energy), and no better at 4.
     double primal_weight = 1.0;
-    /// gamma: the chain's target is (f*)^gamma, not f*. Any positive power of f* covers what
-    /// f* covers, so the estimator stays unbiased (the splat weights divide by the target the
-    /// chain samples); gamma < 1 flattens the spikes of f* that a lucky large step finds (the
-    /// chain then stays in a few pixels for a long time: over-visits) and lowers the relative
-    /// variance of b = E[f*^gamma] over uniform samples, which sets the whole image's
-    /// brightness. 1 is Lehtinen et al.'s target.
-    double target_exponent = 1.0;
     /// The primal of every pixel from its own base paths and from the offsets of its
     /// neighbours' (G-PT's MIS between pixels), instead of from its own base paths only.
     /// Measured at 16 s, seeds 0-2: the primal layer's relMSE 2.2-2.7x lower on
@@ -130,15 +123,6 @@ struct GdmltSettings : MarkovChainSettings {
     int very_direct_samples = 64;
 };
 
-/// The screened Poisson solve's primal weight alpha for GDMLT renders (GDPT keeps the
-/// reconstruction's default 0.2). GDMLT's primal comes from the same chain as its differences,
-/// so it adds no independent information locally, and its errors are low-frequency, which the
-/// coarse correction takes from the primal anyway. Measured on the same 16 s raw files
-/// (p_large 0.7, seeds 0-2), alpha 0.05 vs 0.2: caustic_glass_light 0.081 / 0.073 / 0.076 vs
-/// 0.087 / 0.073 / 0.082, cbox_glass_sphere 0.0050 / 0.0054 / 0.0039 vs 0.0055 / 0.0057 /
-/// 0.0041; 0.4 and 0.8 were worse still, 0.1 in between.
-inline constexpr double kGdmltReconstructAlpha = 0.05;
-
 /// How the sampling budget was split between the chains and GDPT (GdmltSettings::gdpt_share).
 struct BudgetSplit {
     std::string mode;      // "auto" or "share"
@@ -174,6 +158,26 @@ struct GdmltOutput {
     Image sample_density;
     GdmltStats stats;
 };
+
+/// The screened Poisson solve's primal weight alpha for GDMLT renders (GDPT keeps the
+/// reconstruction's default 0.2). GDMLT's primal comes from the same chain as its differences,
+/// so it adds no independent information locally, and its errors are low-frequency, which the
+/// coarse correction takes from the primal anyway. Measured on the same 16 s raw files
+/// (p_large 0.7, seeds 0-2), alpha 0.05 vs 0.2: caustic_glass_light 0.081 / 0.073 / 0.076 vs
+/// 0.087 / 0.073 / 0.082, cbox_glass_sphere 0.0050 / 0.0054 / 0.0039 vs 0.0055 / 0.0057 /
+/// 0.0041; 0.4 and 0.8 were worse still, 0.1 in between.
+inline constexpr double kGdmltReconstructAlpha = 0.05;
+
+/// alpha for a render whose layers include GDPT passes (BudgetSplit::parts): their primal is
+/// an independent estimate, and the screened Poisson solve should trust it as GDPT's does (the
+/// reconstruction's default 0.2). Re-solving the auto split's 16 s renders (seed 0) with 0.2
+/// instead of 0.05: materials_envmap 0.00098 -> 0.00022, rough_metal_glass 0.00106 -> 0.00102,
+/// cbox_glass_sphere 0.00225 -> 0.00214, cbox 0.000087 -> 0.000086.
+inline constexpr double kCombinedReconstructAlpha = 0.2;
+
+/// The alpha for the layers a render produced: kGdmltReconstructAlpha when they come from
+/// chains alone, kCombinedReconstructAlpha when a GDPT pass is among them.
+double reconstruct_alpha(const BudgetSplit& split);
 
 /// Renders with the lattice neighbours.
 GdmltOutput render_gdmlt(

@@ -266,8 +266,9 @@ TEST_F(Cli, TheMemoryEstimateIsAtLeastWhatEachIntegratorAllocatesPerPixel) {
     // 1024^2 for path and pssmlt (36 and 62 bytes per pixel measured, estimates 45 and 78:
     // the smallest margin, 9 bytes, is 9 MB over 10^6 pixels, far above the peak's run-to-run
     // noise of well under 1 MB), 128^2 and 384^2 for gdpt and gdmlt (whose reconstruction makes
-    // larger films slow; 325 and 310 measured, estimates 493 and 395: margins of 11-22 MB). This
-    // test found PSSMLT's estimate (53) below its real 62 once the bootstrap kept its splats.
+    // larger films slow; 325 and 517 measured, estimates 493 and 650: margins of 17-22 MB). This
+    // test found PSSMLT's estimate (53) below its real 62 once the bootstrap kept its splats,
+    // and GDMLT's (395) below its real 517 once its budget split held GDPT's buffers.
     write("res.xml", R"(<scene version="3.0.0">
   <default name="res" value="64"/>
   <sensor type="perspective"><transform name="to_world"><lookat origin="0, 0, 3.9" target="0, 0, 0" up="0, 1, 0"/></transform>
