@@ -959,7 +959,7 @@ int main(int argc, char** argv) {
     render_cmd
         ->add_option("--huber", render.huber,
                      "Gradient domain, l1: Huber threshold in noise standard deviations where the "
-                     "render has variance layers (gdpt; 1.345; 0 = pure L1)")
+                     "render has variance layers (gdpt, gdmlt; 1.345; 0 = pure L1)")
         ->check(CLI::NonNegativeNumber)
         ->check(finite_number());
     render_cmd->add_option("--shift", render.shift,

@@ -3,7 +3,7 @@
 // One entry point for the CLI and the integrators: pick the method from the config.
 //
 // What each method does with variances (GradientBuffers' primal_variance, dx_variance,
-// dy_variance, extra_variances, which GDPT fills, else 1 / sample_count for the primal):
+// dy_variance, extra_variances, which GDPT and GDMLT fill, else 1 / sample_count for the primal):
 //   l2  ignores them: every edge has its graph weight (1 from buffers) and every primal alpha^2,
 //       the unweighted screened Poisson problem of Lehtinen et al. 2013 / Kettunen et al. 2015.
 //   l1  ignores them too: IRLS weights come from the residuals of the previous iterate, which

@@ -95,7 +95,7 @@ TEST(GradientLayers, EveryLatticeLayerAndVarianceRoundTripsExactly) {
     b.dy_variance = test::ramp_image(w, h, 3, 7e-3f);  // the per-channel form comes back as R, G, B
     expect_same(b, write_and_read(b, "lattice"));
 
-    // Absent layers stay absent (GDMLT: no sample counts, no variances).
+    // Absent layers stay absent (GDMLT: no sample counts; here no variances either).
     GradientBuffers chain;
     chain.primal = b.primal;
     chain.dx = b.dx;
