@@ -151,7 +151,8 @@ struct GdmltStats : ChainStats {
 };
 
 struct GdmltOutput {
-    /// primal, dx, dy (+ extra edges for a non-lattice set), very_direct (with bidirectional
+    /// primal, dx, dy (+ extra edges for a non-lattice set) with their variance layers (batch
+    /// means, or the combination's when GDPT passes ran), very_direct (with bidirectional
     /// sampling also the light tracing strategies: everything not shifted).
     GradientBuffers buffers;
     /// Chain states per pixel relative to a uniform sampler (1 = as many as uniform).
