@@ -520,17 +520,24 @@ GdmltOutput render_gdmlt(const Scene& scene, const GdmltSettings& settings,
                 very_direct.pixels[3 * i + c] = static_cast<float>(sum[c] / n);
         }
     }
-    if (parts.size() == 1) {
-        b = std::move(parts.front());
+    // Only parts with variance layers can be weighed: a part stopped (Ctrl-C, the time budget)
+    // before it had two samples or batches has none, and is left out when another has them.
+    // Left out, a part's estimate is dropped whole, so the combination stays unbiased.
+    std::vector<std::size_t> usable;
+    for (std::size_t k = 0; k < parts.size(); ++k)
+        if (has_variance_layers(parts[k])) usable.push_back(k);
+    if (usable.empty()) usable.push_back(parts.size() - 1);  // nothing to weigh: the last part
+    if (usable.size() == 1) {
+        b = std::move(parts[usable.front()]);
     } else {
         std::vector<const GradientBuffers*> pointers;
-        for (const GradientBuffers& part : parts) pointers.push_back(&part);
+        for (std::size_t k : usable) pointers.push_back(&parts[k]);
         CombineSummary summary;
         b = combine_by_inverse_variance(pointers, settings.combine_radius, &summary);
         split.primal_weights = summary.primal_weight;
         split.difference_weights = summary.difference_weight;
     }
-    split.parts = part_names;
+    for (std::size_t k : usable) split.parts.push_back(part_names[k]);
     b.very_direct = std::move(very_direct);
     if (chains_ran && settings.bidirectional) {
         // Light tracing is not shifted: it joins the very direct layer, added after the solve.

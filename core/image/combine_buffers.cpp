@@ -124,6 +124,15 @@ double mean_weight(const std::vector<double>& weights, std::size_t part, std::si
 
 }  // namespace
 
+bool has_variance_layers(const GradientBuffers& b) {
+    const auto matches = [&](const Image& values, const Image& variances) {
+        return values.pixels.empty() || variances.pixel_count() == values.pixel_count();
+    };
+    return !b.primal.pixels.empty() && b.primal_variance.pixel_count() == b.primal.pixel_count() &&
+           matches(b.dx, b.dx_variance) && matches(b.dy, b.dy_variance) &&
+           b.extra_variances.size() == b.extra_edges.size();
+}
+
 GradientBuffers combine_by_inverse_variance(std::span<const GradientBuffers* const> parts,
                                             int radius, CombineSummary* summary) {
     if (parts.empty()) throw std::invalid_argument("combine_by_inverse_variance: no parts");

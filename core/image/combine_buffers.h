@@ -25,6 +25,10 @@ namespace gdmlt {
 /// The smoothed variance combine_by_inverse_variance weighs by.
 std::vector<double> leave_one_out_window_mean(const Image& image, int radius);
 
+/// Whether `buffers` has the variance layers combine_by_inverse_variance needs: a primal
+/// variance, one for each lattice layer it holds, one per extra edge.
+bool has_variance_layers(const GradientBuffers& buffers);
+
 /// What combine_by_inverse_variance did, for the stats.
 struct CombineSummary {
     /// Per part, its mean weight over the primal's pixels and over the lattice edges.
