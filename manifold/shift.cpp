@@ -622,11 +622,10 @@ void path_contributions(const Scene& scene, const Path& path,
             Contribution c;
             c.kind = Contribution::Kind::Escape;
             c.vertex = static_cast<int>(k + 1);
-            c.f = f_prefix * scene.environment(path.escape_direction);
+            const Scene::EnvironmentValue env = scene.environment_with_pdf(path.escape_direction);
+            c.f = f_prefix * env.radiance;
             c.pdf = pdf_prefix;
-            if (!v.delta)
-                c.pdf_other =
-                    pdf_prefix / v.pdf * scene.pdf_environment_solid_angle(path.escape_direction);
+            if (!v.delta) c.pdf_other = pdf_prefix / v.pdf * env.pdf_solid_angle;
             c.log_jacobian = log_j_prefix;
             out.push_back(c);
         }

@@ -3,6 +3,8 @@
 
 #include <stdexcept>
 
+#include "core/math/trig.h"
+
 namespace gdmlt {
 
 const char* emitter_kind_name(const Emitter& e) {
@@ -30,37 +32,49 @@ SpotEmitter make_spot(const Vec3f& position, const Mat3f& world_from_local, cons
 
 namespace {
 
-/// Local direction of lat-long coordinates (the inverse of envmap_uv).
+/// Local direction of lat-long coordinates (the inverse of envmap_uv): theta = pi v,
+/// phi = 2 pi u.
 Vec3f envmap_direction(const Vec2f& uv, float* sin_theta) {
-    const float theta = uv.y() * kPi, phi = uv.x() * 2.f * kPi;
-    *sin_theta = std::sin(theta);
-    return {std::sin(phi) * *sin_theta, std::cos(theta), -std::cos(phi) * *sin_theta};
+    float sin_phi = 0.f, cos_phi = 1.f, cos_theta = 1.f;
+    sincos_turns(uv.x(), sin_phi, cos_phi);
+    sincos_turns(0.5f * uv.y(), *sin_theta, cos_theta);
+    return {sin_phi * *sin_theta, cos_theta, -cos_phi * *sin_theta};
 }
 
-Vec2f envmap_uv(const Vec3f& d) {
-    float u = std::atan2(d.x(), -d.z()) * (0.5f * kInvPi);
+/// (u, v) of a local direction whose distance from the y axis is `sin_theta`. theta comes from
+/// atan2(sin, cos) rather than acos(d.y): the same routine as phi, and accurate at the poles.
+Vec2f envmap_uv(const Vec3f& d, float sin_theta) {
+    float u = atan2_approx(d.x(), -d.z()) * (0.5f * kInvPi);
     if (u < 0.f) u += 1.f;
-    return {std::min(u, 0x1.fffffep-1f), safe_acos(d.y()) * kInvPi};
+    const float v = atan2_approx(sin_theta, d.y()) * kInvPi;
+    return {std::min(u, 0x1.fffffep-1f), std::clamp(v, 0.f, 1.f)};
+}
+
+float sin_theta_of(const Vec3f& d) {
+    return std::sqrt(d.x() * d.x() + d.z() * d.z());
 }
 
 }  // namespace
 
 Rgb EnvmapData::lookup(const Vec2f& uv) const {
     // Columns are periodic and centred at (i + 0.5) / width; rows run pole to pole.
-    float x = uv.x() * static_cast<float>(width) - 0.5f;
-    x -= static_cast<float>(width) * std::floor(x / static_cast<float>(width));
+    const auto w = static_cast<float>(width);
+    float x = uv.x() * w - 0.5f;
+    // u in [0, 1] (every caller here) puts x in [-0.5, width - 0.5]: one wrap of the left
+    // half-column, without the division and floor of the general case below.
+    if (x < 0.f) x += w;
+    if (!(x >= 0.f && x < w)) x -= w * std::floor(x / w);
     const int x0 = std::clamp(static_cast<int>(x), 0, width - 1);
     const int x1 = x0 + 1 == width ? 0 : x0 + 1;
     const float fx = std::clamp(x - static_cast<float>(x0), 0.f, 1.f);
     const float y = std::clamp(uv.y(), 0.f, 1.f) * static_cast<float>(height - 1);
     const int y0 = std::min(static_cast<int>(y), height - 2);
     const float fy = std::clamp(y - static_cast<float>(y0), 0.f, 1.f);
-    const auto at = [&](int xi, int yi) -> const Rgb& {
-        return texels[static_cast<std::size_t>(yi) * static_cast<std::size_t>(width) +
-                      static_cast<std::size_t>(xi)];
-    };
-    return (1.f - fy) * ((1.f - fx) * at(x0, y0) + fx * at(x1, y0)) +
-           fy * ((1.f - fx) * at(x0, y0 + 1) + fx * at(x1, y0 + 1));
+    const Rgb* row0 =
+        texels.data() + static_cast<std::size_t>(y0) * static_cast<std::size_t>(width);
+    const Rgb* row1 = row0 + width;
+    return (1.f - fy) * ((1.f - fx) * row0[x0] + fx * row0[x1]) +
+           fy * ((1.f - fx) * row1[x0] + fx * row1[x1]);
 }
 
 EnvmapData make_envmap_data(int width, int height, std::vector<Rgb> texels) {
@@ -112,29 +126,42 @@ EnvmapData make_envmap_data(int width, int height, std::vector<Rgb> texels) {
 
 Rgb EnvmapEmitter::eval(const Vec3f& d_world) const {
     const Vec3f d = local_from_world * d_world;
-    return data->lookup(envmap_uv(d)) * scale;
+    return data->lookup(envmap_uv(d, sin_theta_of(d))) * scale;
 }
 
-EnvmapEmitter::Sample EnvmapEmitter::sample(const Vec2f& u) const {
+EnvmapEmitter::Sample EnvmapEmitter::sample_direction(const Vec2f& u) const {
     Sample s;
     if (!data->distribution.valid()) return s;
     float pdf_uv = 0.f;
-    const Vec2f uv = data->distribution.sample(u, &pdf_uv);
+    s.uv = data->distribution.sample(u, &pdf_uv);
     float sin_theta = 0.f;
-    const Vec3f d = envmap_direction(uv, &sin_theta);
+    const Vec3f d = envmap_direction(s.uv, &sin_theta);
     // d omega = 2 pi^2 sin(theta) du dv.
     if (!(sin_theta > 0.f) || !(pdf_uv > 0.f)) return s;
     s.direction = (world_from_local * d).normalized();
     s.pdf_solid_angle = pdf_uv / (2.f * kPi * kPi * sin_theta);
-    s.radiance = data->lookup(uv) * scale;
+    return s;
+}
+
+EnvmapEmitter::Sample EnvmapEmitter::sample(const Vec2f& u) const {
+    Sample s = sample_direction(u);
+    if (s.pdf_solid_angle > 0.f) s.radiance = data->lookup(s.uv) * scale;
     return s;
 }
 
 float EnvmapEmitter::pdf_solid_angle(const Vec3f& d_world) const {
+    return eval_with_pdf(d_world).pdf_solid_angle;
+}
+
+EnvmapEmitter::Value EnvmapEmitter::eval_with_pdf(const Vec3f& d_world) const {
     const Vec3f d = local_from_world * d_world;
-    const float sin_theta = std::sqrt(d.x() * d.x() + d.z() * d.z());
-    if (!(sin_theta > 0.f)) return 0.f;
-    return data->distribution.pdf_area(envmap_uv(d)) / (2.f * kPi * kPi * sin_theta);
+    const float sin_theta = sin_theta_of(d);
+    const Vec2f uv = envmap_uv(d, sin_theta);
+    Value v;
+    v.radiance = data->lookup(uv) * scale;
+    if (sin_theta > 0.f)
+        v.pdf_solid_angle = data->distribution.pdf_area(uv) / (2.f * kPi * kPi * sin_theta);
+    return v;
 }
 
 }  // namespace gdmlt

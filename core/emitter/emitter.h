@@ -95,9 +95,20 @@ struct EnvmapEmitter {
         Vec3f direction = Vec3f::UnitZ();  // world, towards the environment
         float pdf_solid_angle = 0.f;
         Rgb radiance = Rgb::Zero();
+        Vec2f uv = Vec2f::Zero();  // where in the map
     };
     Sample sample(const Vec2f& u) const;
+    /// sample() without the radiance (left zero): for callers that evaluate the direction
+    /// themselves (Scene sums every infinite emitter along it).
+    Sample sample_direction(const Vec2f& u) const;
     float pdf_solid_angle(const Vec3f& d) const;
+    /// eval() and pdf_solid_angle() from one direction -> (u, v) map: what an escaping ray
+    /// needs, at half the trigonometry of the two calls.
+    struct Value {
+        Rgb radiance = Rgb::Zero();
+        float pdf_solid_angle = 0.f;
+    };
+    Value eval_with_pdf(const Vec3f& d) const;
 };
 
 using Emitter = std::variant<AreaEmitter, PointEmitter, SpotEmitter, DirectionalEmitter,

@@ -126,11 +126,10 @@ bool begin_vertex(const Scene& scene, const SurfaceInteraction& si,
 
     if (!si.valid()) {
         if (scene.has_environment() && count_emission) {
-            const float w = state.prev_delta
-                                ? 1.f
-                                : power_heuristic(state.prev_pdf_bsdf,
-                                                  scene.pdf_environment_solid_angle(ray.direction));
-            state.radiance += state.throughput * scene.environment(ray.direction) * w;
+            const Scene::EnvironmentValue env = scene.environment_with_pdf(ray.direction);
+            const float w =
+                state.prev_delta ? 1.f : power_heuristic(state.prev_pdf_bsdf, env.pdf_solid_angle);
+            state.radiance += state.throughput * env.radiance * w;
         }
         return false;
     }

@@ -3,6 +3,7 @@
 // Discrete distribution proportional to non-negative weights: sampling by binary search on the
 // CDF, with the sample re-used (rescaled) for a continuous choice inside the chosen bin.
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 namespace gdmlt {
@@ -45,7 +46,8 @@ class Distribution1D {
     std::size_t finish_search(std::size_t index, double target, float* u_remapped) const;
 
     std::vector<float> pmf_;
-    std::vector<double> cdf_;  // size()+1 entries, cdf_[0] = 0, cdf_.back() = 1
+    std::vector<double> cdf_;           // size()+1 entries, cdf_[0] = 0, cdf_.back() = 1
+    std::vector<std::uint32_t> guide_;  // search()'s starting bins (more than 16 bins only)
     double total_ = 0.0;
 };
 

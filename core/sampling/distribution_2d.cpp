@@ -18,6 +18,19 @@ Distribution2D::Distribution2D(const std::vector<float>& weights, int width, int
         row_sums[static_cast<std::size_t>(y)] = static_cast<float>(conditional_.back().total());
     }
     marginal_ = Distribution1D(row_sums);
+    // Every cell's density, the one sample() reports and pdf_area() reads.
+    pdf_area_.assign(weights.size(), 0.f);
+    if (!valid()) return;
+    for (int y = 0; y < height; ++y) {
+        const Distribution1D& columns = conditional_[static_cast<std::size_t>(y)];
+        if (!columns.valid()) continue;
+        for (int x = 0; x < width; ++x)
+            pdf_area_[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
+                      static_cast<std::size_t>(x)] = marginal_.pmf(static_cast<std::size_t>(y)) *
+                                                     columns.pmf(static_cast<std::size_t>(x)) *
+                                                     static_cast<float>(width_) *
+                                                     static_cast<float>(height_);
+    }
 }
 
 Vec2f Distribution2D::sample(const Vec2f& u, float* pdf_area) const {
@@ -25,8 +38,7 @@ Vec2f Distribution2D::sample(const Vec2f& u, float* pdf_area) const {
     const std::size_t row = marginal_.sample(u.y(), &v_in_row);
     const Distribution1D& columns = conditional_[row];
     const std::size_t column = columns.sample(u.x(), &u_in_cell);
-    *pdf_area = marginal_.pmf(row) * columns.pmf(column) * static_cast<float>(width_) *
-                static_cast<float>(height_);
+    *pdf_area = pdf_area_[row * static_cast<std::size_t>(width_) + column];
     // The remapped numbers place the point uniformly inside the chosen cell.
     return {(static_cast<float>(column) + u_in_cell) / static_cast<float>(width_),
             (static_cast<float>(row) + v_in_row) / static_cast<float>(height_)};
@@ -36,10 +48,8 @@ float Distribution2D::pdf_area(const Vec2f& p) const {
     if (!valid() || !(p.x() >= 0.f && p.x() <= 1.f && p.y() >= 0.f && p.y() <= 1.f)) return 0.f;
     const int x = std::min(static_cast<int>(p.x() * static_cast<float>(width_)), width_ - 1);
     const int y = std::min(static_cast<int>(p.y() * static_cast<float>(height_)), height_ - 1);
-    const Distribution1D& columns = conditional_[static_cast<std::size_t>(y)];
-    if (!columns.valid()) return 0.f;
-    return marginal_.pmf(static_cast<std::size_t>(y)) * columns.pmf(static_cast<std::size_t>(x)) *
-           static_cast<float>(width_) * static_cast<float>(height_);
+    return pdf_area_[static_cast<std::size_t>(y) * static_cast<std::size_t>(width_) +
+                     static_cast<std::size_t>(x)];
 }
 
 }  // namespace gdmlt

@@ -31,6 +31,7 @@ class Distribution2D {
     int height_ = 0;
     Distribution1D marginal_;                  // over rows
     std::vector<Distribution1D> conditional_;  // over columns, per row
+    std::vector<float> pdf_area_;              // per cell, row-major: pdf_area's table
 };
 
 }  // namespace gdmlt

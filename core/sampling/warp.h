@@ -2,23 +2,14 @@
 #pragma once
 // Warps from the unit square to common domains, each beside its pdf in the measure it is named
 // for. Every pair is chi-square tested in tests/core/test_warp.cpp.
+#include "core/math/trig.h"
 #include "core/math/types.h"
 
 namespace gdmlt::warp {
 
-/// sin(x) and cos(x) for |x| <= pi/4, from minimax polynomials of degree 7 and 8 (the
-/// coefficients of S. Moshier's Cephes sinf/cosf for this interval), within about an ulp of
-/// std::sin and std::cos. The path tracer's vectorised vertex (core/path/diffuse_lanes_kernel.inc)
-/// evaluates the same expression in SIMD lanes, where libm would be a scalar call per lane;
-/// sharing it keeps the two bit for bit equal.
-inline void sincos_quarter_pi(float x, float& sin_x, float& cos_x) {
-    const float x2 = x * x;
-    sin_x = x + x * x2 * (-1.6666654611e-1f + x2 * (8.3321608736e-3f + x2 * -1.9515295891e-4f));
-    cos_x =
-        1.f - 0.5f * x2 +
-        x2 * x2 *
-            (4.166664568298827e-2f + x2 * (-1.388731625493765e-3f + x2 * 2.443315711809948e-5f));
-}
+/// In core/math/trig.h beside the other branch-free trigonometry; named here too, as the
+/// concentric map's part.
+using gdmlt::sincos_quarter_pi;
 
 /// Shirley-Chiu concentric map (1997): low distortion, continuous, area-preserving up to pi.
 /// Its angle is phi = pi/4 y/x, or phi = pi/2 - pi/4 x/y, whose cosine and sine are the sine

@@ -187,7 +187,7 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         // An infinite emitter: a direction from its own sampler, then the radiance and density
         // of all infinite emitters together (see the header).
         if (const auto* envmap = std::get_if<EnvmapEmitter>(&e)) {
-            const EnvmapEmitter::Sample es = envmap->sample(u);
+            const EnvmapEmitter::Sample es = envmap->sample_direction(u);
             if (!(es.pdf_solid_angle > 0.f)) {
                 s = EmitterSample{};
                 return s;
@@ -196,8 +196,9 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         } else {
             s.wi = warp::square_to_uniform_sphere(u);
         }
-        s.pdf_solid_angle = pdf_environment_solid_angle(s.wi);
-        s.radiance = environment(s.wi);
+        const EnvironmentValue env = environment_with_pdf(s.wi);
+        s.pdf_solid_angle = env.pdf_solid_angle;
+        s.radiance = env.radiance;
         s.distance = kInfinity;
     }
     if (!std::isfinite(s.pdf_solid_angle) || !is_finite(s.radiance)) {
@@ -314,17 +315,18 @@ EmittedRay Scene::sample_emitted_ray(float u_select, const Vec2f& u_position,
         // emitter's sampler, with the radiance and density of all of them; the ray comes back.
         Vec3f towards = Vec3f::Zero();
         if (const auto* envmap = std::get_if<EnvmapEmitter>(&e)) {
-            const EnvmapEmitter::Sample es = envmap->sample(u_direction);
+            const EnvmapEmitter::Sample es = envmap->sample_direction(u_direction);
             if (!(es.pdf_solid_angle > 0.f)) return EmittedRay{};
             towards = es.direction;
         } else {
             towards = warp::square_to_uniform_sphere(u_direction);
         }
+        const EnvironmentValue env = environment_with_pdf(towards);
         r.direction = -towards;
         r.origin = disk_origin(towards);
-        r.radiance = environment(towards);
+        r.radiance = env.radiance;
         r.pdf_position = disk_pdf;
-        r.pdf_direction = pdf_environment_solid_angle(towards);
+        r.pdf_direction = env.pdf_solid_angle;
         r.at_infinity = true;
         if (!(r.pdf_direction > 0.f)) return EmittedRay{};
         r.weight = r.radiance / (r.pdf_position * r.pdf_direction);
@@ -400,6 +402,23 @@ float Scene::pdf_emitter_solid_angle(const Vec3f& ref_p, const SurfaceInteractio
     const Shape& shape = shapes_[static_cast<std::size_t>(si.shape)];
     const float pmf = emitter_selection_.pmf(static_cast<std::size_t>(emitter));
     return pmf * dist2 / (cos_light * shape.surface_area());
+}
+
+Scene::EnvironmentValue Scene::environment_with_pdf(const Vec3f& direction) const {
+    EnvironmentValue v;
+    for (int index : infinite_emitters_) {
+        const Emitter& e = emitters_[static_cast<std::size_t>(index)];
+        const float pmf = emitter_selection_.pmf(static_cast<std::size_t>(index));
+        if (const auto* envmap = std::get_if<EnvmapEmitter>(&e)) {
+            const EnvmapEmitter::Value ev = envmap->eval_with_pdf(direction);
+            v.radiance += ev.radiance;
+            v.pdf_solid_angle += pmf * ev.pdf_solid_angle;
+        } else {
+            v.radiance += std::get<ConstantEmitter>(e).radiance;
+            v.pdf_solid_angle += pmf * warp::square_to_uniform_sphere_pdf_solid_angle();
+        }
+    }
+    return v;
 }
 
 float Scene::pdf_environment_solid_angle(const Vec3f& direction) const {
