@@ -21,7 +21,12 @@
 //   bounce    - from the hit points of those rays, cosine-distributed directions about the
 //               geometric normal on the camera's side (incoherent, like diffuse bounces);
 //   shadow    - from the same points to a point chosen by Scene::sample_emitter (occlusion
-//               queries stopping short of the light, like next-event estimation).
+//               queries stopping short of the light, like next-event estimation);
+//   random    - origins uniform in the middle 80% of the scene's bounding box (per axis),
+//               directions uniform on the sphere, unbounded: a distribution that needs no
+//               renderer, so that another renderer's ray rate on the same scene file can be
+//               measured the same way (bench/mitsuba_rays.py does so for Mitsuba 3); as
+//               intersections (BM_Embree*/random) and as occlusion tests (random_test).
 // Scene: GDMLT_BENCH_SCENE / GDMLT_BENCH_DEFINES (bench/bench_scene.h), default scenes/cbox.xml.
 #include <benchmark/benchmark.h>
 
@@ -54,6 +59,7 @@ struct Workload {
     std::unique_ptr<Accelerator> accelerator;  // our own, over the scene's shapes
     std::vector<Ray> camera, bounce, shadow;
     std::vector<Ray> camera_pixel;  // kPixelSamples consecutive rays per pixel
+    std::vector<Ray> random;        // see the file comment
     std::string error;
 };
 
@@ -100,6 +106,14 @@ Workload make_workload() {
                     w.scene->camera().generate_ray(Vec2f(px + j.x(), py + j.y())));
             }
         }
+        const Eigen::AlignedBox3f box = w.scene->bounds();
+        for (std::uint64_t i = 0; static_cast<int>(w.random.size()) < kRays; ++i) {
+            IndependentStream stream(derive_stream(kSeed + 2, i));
+            const Vec3f u(stream.next_1d(), stream.next_1d(), stream.next_1d());
+            const Vec3f origin =
+                box.min() + (box.max() - box.min()).cwiseProduct(Vec3f::Constant(0.1f) + 0.8f * u);
+            w.random.push_back(Ray{origin, warp::square_to_uniform_sphere(stream.next_2d())});
+        }
         if (w.shadow.empty()) throw InputError("the scene has no emitter to cast shadow rays to");
     } catch (const std::exception& e) {
         w.error = e.what();
@@ -112,7 +126,7 @@ const Workload& workload() {
     return w;
 }
 
-enum class Kind { Camera, CameraPixel, Bounce, Shadow };
+enum class Kind { Camera, CameraPixel, Bounce, Shadow, Random, RandomTest };
 
 /// The workload's rays of `kind`, or nullptr (and the benchmark skipped) if it failed to build.
 const std::vector<Ray>* rays_of(benchmark::State& state, Kind kind) {
@@ -122,6 +136,7 @@ const std::vector<Ray>* rays_of(benchmark::State& state, Kind kind) {
         return nullptr;
     }
     if (kind == Kind::CameraPixel) return &w.camera_pixel;
+    if (kind == Kind::Random || kind == Kind::RandomTest) return &w.random;
     return kind == Kind::Camera ? &w.camera : kind == Kind::Bounce ? &w.bounce : &w.shadow;
 }
 
@@ -135,7 +150,7 @@ void BM_Embree(benchmark::State& state, Kind kind) {
         (rays.size() / 2) * static_cast<std::size_t>(state.thread_index()) % rays.size();
     std::int64_t hits = 0;
     for (auto _ : state) {
-        if (kind == Kind::Shadow) {
+        if (kind == Kind::Shadow || kind == Kind::RandomTest) {
             hits += accelerator.occluded(rays[i]) ? 1 : 0;
         } else {
             const RayHit hit = accelerator.intersect(rays[i]);
@@ -173,7 +188,7 @@ void BM_Embree_packet(benchmark::State& state, Kind kind, bool coherent) {
     std::array<bool, kPacket> blocked;
     std::int64_t hit_count = 0;
     for (auto _ : state) {
-        if (kind == Kind::Shadow) {
+        if (kind == Kind::Shadow || kind == Kind::RandomTest) {
             accelerator.occluded_packet(ray_packets[p], blocked);
             for (const bool b : blocked) hit_count += b ? 1 : 0;
         } else {
@@ -198,8 +213,11 @@ void BM_Embree_packet(benchmark::State& state, Kind kind, bool coherent) {
             ->Threads(2)
             ->UseRealTime();
     };
-    const std::pair<const char*, Kind> kinds[] = {
-        {"camera", Kind::Camera}, {"bounce", Kind::Bounce}, {"shadow", Kind::Shadow}};
+    const std::pair<const char*, Kind> kinds[] = {{"camera", Kind::Camera},
+                                                  {"bounce", Kind::Bounce},
+                                                  {"shadow", Kind::Shadow},
+                                                  {"random", Kind::Random},
+                                                  {"random_test", Kind::RandomTest}};
     for (const auto& [name, kind] : kinds) {
         benchmark::RegisterBenchmark((std::string("BM_Embree/") + name).c_str(), BM_Embree, kind)
             ->Threads(1)

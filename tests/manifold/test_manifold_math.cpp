@@ -106,10 +106,14 @@ Scene make_scene(ChainKind kind) {
                 <bsdf type="dielectric"><float name="int_ior" value="1.5"/>
                 <float name="ext_ior" value="1"/></bsdf></shape>)");
         case ChainKind::MirrorMeshInside: {
-            static const std::string path = write_icosphere_obj(2);
-            return test::scene_from_xml(R"(<shape type="obj"><string name="filename" value=")" +
-                                        path + R"("/><boolean name="flip_normals" value="true"/>
+            // The OBJ file lives only while the scene loads it (the scene keeps the mesh).
+            const std::string path = write_icosphere_obj(2);
+            Scene scene =
+                test::scene_from_xml(R"(<shape type="obj"><string name="filename" value=")" + path +
+                                     R"("/><boolean name="flip_normals" value="true"/>
                 <bsdf type="conductor"/></shape>)");
+            std::filesystem::remove(path);
+            return scene;
         }
     }
     return test::scene_from_xml("");
