@@ -310,7 +310,10 @@ def raw_embree(args) -> dict:
     env = dict(os.environ, GDMLT_BENCH_SCENE=str(args.scene),
                GDMLT_BENCH_DEFINES=f"res={args.res},max_depth={args.max_depth}")
     out = subprocess.run([args.bench_embree, "--benchmark_format=json", "--benchmark_min_time=0.5",
-                          f"--benchmark_filter=threads:{args.threads}$"],
+                          # The renderer's kinds only (not `random`, which is for comparing
+                          # ray rates with Mitsuba 3: bench/mitsuba_rays.py).
+                          "--benchmark_filter=/(camera|camera_pixel|camera_pixel_coherent|bounce"
+                          f"|shadow)/.*threads:{args.threads}$"],
                          capture_output=True, text=True, env=env)
     if out.returncode != 0:
         return {"error": out.stderr.strip()[-300:]}

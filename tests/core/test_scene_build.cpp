@@ -3,9 +3,14 @@
 // Mitsuba's geometry; features say what occurs.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 
+#include "core/sampling/rng.h"
+#include "core/sampling/warp.h"
 #include "core/scene/scene.h"
 #include "tests/support/scene_fixtures.h"
 
@@ -198,6 +203,67 @@ TEST(SceneBuild, SphereHasExactNormalsAndConsistentDifferentials) {
     EXPECT_NEAR(((a.p - b.p) / (2.f * h) - si.dp_du).norm(), 0.f, 2e-3f * si.dp_du.norm());
     EXPECT_NEAR(((a.shading.n - b.shading.n) / (2.f * h) - si.dn_du).norm(), 0.f,
                 2e-3f * si.dn_du.norm());
+}
+
+TEST(SceneBuild, SphereParametrisationMatchesDoublePrecisionEverywhere) {
+    // Hits all over a sphere (radius 0.5 at (1, 2, 3); 20,000 directions, Pcg32 stream seed
+    // 12, plus the poles, points 1e-4 and 1e-6 rad from them, and both sides of the phi seam):
+    // surface_param against phi = atan2(y, x) (in [0, 2 pi)) and theta = acos(z) in double,
+    // dp/du and dp/dv against their formulas in double, and interaction_at of the parameters
+    // back to the point. Tolerances: the angles within 4e-7 (trig.h's atan2 is within 2e-7,
+    // plus the roundings of the direction and the division by pi), the derivatives within
+    // 1e-6 of their scale (a few float roundings), the round trip within 2e-6 r (angles
+    // within 4e-7 move the point by 2 pi x 4e-7 r at most, plus the point's roundings). Seen
+    // failing with theta taken as atan2(z, rho) (v off by up to 0.5) and with the ratios for
+    // cos phi and sin phi swapped.
+    const Vec3f center(1, 2, 3);
+    const float radius = 0.5f;
+    const Scene scene = test::scene_from_xml(
+        R"(<shape type="sphere"><point name="center" value="1, 2, 3"/><float name="radius" value="0.5"/></shape>)");
+    const Shape& shape = scene.shapes()[0];
+    std::vector<Vec3f> directions = {Vec3f::UnitZ(), -Vec3f::UnitZ(), Vec3f::UnitX(),
+                                     Vec3f(1.f, -1e-7f, 0.f).normalized(),
+                                     Vec3f(1.f, 1e-7f, 0.f).normalized()};
+    for (const float off_pole : {1e-4f, 1e-6f})
+        for (const float z : {1.f, -1.f})
+            directions.push_back(Vec3f(std::sin(off_pole), 0.f, z * std::cos(off_pole)));
+    Pcg32 rng(12, 3);
+    for (int i = 0; i < 20000; ++i)
+        directions.push_back(
+            warp::square_to_uniform_sphere(Vec2f(rng.next_float(), rng.next_float())));
+    double worst_angle = 0.0, worst_round_trip = 0.0;
+    for (const Vec3f& d : directions) {
+        // A ray from outside straight at the centre hits at center + radius * d.
+        const Vec3f origin = center + 4.f * radius * d;
+        const SurfaceInteraction si = scene.intersect(Ray{origin, -d, kInfinity});
+        ASSERT_TRUE(si.valid());
+        const Vec3d n = ((si.p - center) / radius).cast<double>().normalized();
+        double phi = std::atan2(n.y(), n.x());
+        if (phi < 0.0) phi += 2.0 * std::numbers::pi;
+        const double theta = std::acos(std::clamp(n.z(), -1.0, 1.0));
+        const double rho = std::hypot(n.x(), n.y());
+        // On the seam phi may land at either end of [0, 2 pi): compare modulo one turn.
+        double du = std::abs(si.surface_param.x() - phi / (2.0 * std::numbers::pi));
+        du = std::min(du, 1.0 - du);
+        const double dv = std::abs(si.surface_param.y() - theta / std::numbers::pi);
+        worst_angle = std::max({worst_angle, du, dv});
+        ASSERT_LE(du, 4e-7) << d.transpose();
+        ASSERT_LE(dv, 4e-7) << d.transpose();
+        if (rho > 1e-3) {  // away from the poles, where phi and dp/du are defined
+            const Vec3d dp_du = 2.0 * std::numbers::pi * radius * Vec3d(-n.y(), n.x(), 0.0);
+            const Vec3d dp_dv =
+                std::numbers::pi * radius * Vec3d(n.z() * n.x() / rho, n.z() * n.y() / rho, -rho);
+            ASSERT_LE((si.dp_du.cast<double>() - dp_du).norm(), 1e-6 * 2.0 * std::numbers::pi)
+                << d.transpose();
+            ASSERT_LE((si.dp_dv.cast<double>() - dp_dv).norm(), 1e-6 * std::numbers::pi)
+                << d.transpose();
+        }
+        const SurfaceInteraction back = shape.interaction_at(0, si.surface_param);
+        const double round_trip = (back.p - si.p).cast<double>().norm() / radius;
+        worst_round_trip = std::max(worst_round_trip, round_trip);
+        ASSERT_LE(round_trip, 2e-6) << d.transpose();
+    }
+    std::printf("worst angle error %.3g, worst round trip %.3g r\n", worst_angle, worst_round_trip);
 }
 
 TEST(SceneBuild, MeshNormalDerivativesMatchFiniteDifferences) {
