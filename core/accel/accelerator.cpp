@@ -121,8 +121,8 @@ Accelerator::Accelerator(const std::vector<Shape>& shapes) : impl_(std::make_uni
             // A sphere is a user geometry with our own intersection (sphere_intersect.h), not
             // Embree's RTC_GEOMETRY_TYPE_SPHERE_POINT, which runs through the curve machinery:
             // on cbox_glass_sphere's random rays (bench_embree random, 2 threads, packets) it
-            // traced 21.0 M rays/s against 27.9 for the user geometry (Mitsuba 3, whose
-            // spheres are built this way: 33).
+            // traced 21.0 M rays/s against 28.5 for the user geometry (Mitsuba 3, whose
+            // spheres are built this way: 33.0 with bench/mitsuba_rays.py).
             const Sphere& sphere = impl_->spheres.emplace_back(std::get<Sphere>(shape.geometry()));
             geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_USER);
             rtcSetGeometryUserPrimitiveCount(geometry, 1);
