@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "core/sampling/distribution_2d.h"
 
+#include <cmath>
 #include <stdexcept>
 
 namespace gdmlt {
@@ -40,8 +41,18 @@ Vec2f Distribution2D::sample(const Vec2f& u, float* pdf_area) const {
     const std::size_t column = columns.sample(u.x(), &u_in_cell);
     *pdf_area = pdf_area_[row * static_cast<std::size_t>(width_) + column];
     // The remapped numbers place the point uniformly inside the chosen cell.
-    return {(static_cast<float>(column) + u_in_cell) / static_cast<float>(width_),
-            (static_cast<float>(row) + v_in_row) / static_cast<float>(height_)};
+    return {inside_cell(column, u_in_cell, width_), inside_cell(row, v_in_row, height_)};
+}
+
+float Distribution2D::inside_cell(std::size_t cell, float u_in_cell, int cells) {
+    // (cell + u) / cells with u just below 1 rounds to the next cell's edge (at cell 32 of 64
+    // for u > 1 - 2e-6), where pdf_area() would read the neighbour's density: step back to
+    // the last float that pdf_area() maps to this cell, so that a sample's density is the
+    // density of the point it returns.
+    const auto n = static_cast<float>(cells);
+    float x = (static_cast<float>(cell) + u_in_cell) / n;
+    while (x > 0.f && static_cast<std::size_t>(x * n) > cell) x = std::nextafter(x, 0.f);
+    return x;
 }
 
 float Distribution2D::pdf_area(const Vec2f& p) const {

@@ -27,6 +27,10 @@ class Distribution2D {
     float pdf_area(const Vec2f& p) const;
 
   private:
+    /// The coordinate of the point `u_in_cell` of the way across cell `cell` of `cells`, never
+    /// rounded into the next cell.
+    static float inside_cell(std::size_t cell, float u_in_cell, int cells);
+
     int width_ = 0;
     int height_ = 0;
     Distribution1D marginal_;                  // over rows

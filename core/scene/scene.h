@@ -204,6 +204,11 @@ class Scene {
         float pdf_solid_angle = 0.f;
     };
     EnvironmentValue environment_with_pdf(const Vec3f& direction) const;
+    /// environment_with_pdf(sample.direction) for a direction `envmap` (chosen with
+    /// probability `pmf`) sampled, taken from the sample's own (u, v) when it is the scene's
+    /// only infinite emitter.
+    EnvironmentValue environment_of_sample(const EnvmapEmitter& envmap,
+                                           const EnvmapEmitter::Sample& sample, float pmf) const;
     bool has_environment() const { return !infinite_emitters_.empty(); }
     /// Probability that sample_emitter chooses emitter `index` (proportional to its estimated
     /// power), for MIS weights of other samplers.

@@ -10,6 +10,7 @@
 #include <cstdint>
 
 #include "core/sampling/distribution_1d.h"
+#include "core/sampling/distribution_2d.h"
 #include "core/sampling/warp.h"
 #include "tests/support/chi2.h"
 
@@ -231,6 +232,58 @@ TEST(Distribution1D, LargeDistributionsChooseTheBinWhoseCdfIntervalHoldsU) {
 TEST(Distribution1D, AllZeroWeightsGiveAnInvalidDistribution) {
     EXPECT_FALSE(Distribution1D({0.f, 0.f}).valid());
     EXPECT_FALSE(Distribution1D({std::nanf(""), -1.f}).valid());
+}
+
+TEST(Distribution2D, SampledPointsLieInTheCellWhoseDensityTheyReport) {
+    // A sample's reported density must be pdf_area() at the point it returns, also where the
+    // number placing it inside its cell is just below 1: (cell + u) / cells then rounds onto
+    // the next cell's edge in float (from cell 16 of 64 on for u > 1 - 2^-20), and an
+    // unguarded sample reported its cell's density for a point of the neighbour's. Weights
+    // a(x) b(y), all cells distinct in density along each axis; numbers at every cell's
+    // lower CDF edge, half-way, and the last floats below its upper edge, in both dimensions.
+    const int width = 64, height = 32;
+    const auto a = [](int x) { return 1.0 + 0.37 * x + 0.01 * x * x; };
+    const auto b = [](int y) { return 2.0 + 0.21 * y; };
+    std::vector<float> weights;
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) weights.push_back(static_cast<float>(a(x) * b(y)));
+    const Distribution2D d(weights, width, height);
+    ASSERT_TRUE(d.valid());
+    // Numbers in [0, 1) at the CDF edges of weights f over n cells: just below each upper edge,
+    // at each lower edge and at each middle.
+    const auto probes = [](auto f, int n) {
+        std::vector<double> cdf(1, 0.0);
+        for (int k = 0; k < n; ++k) cdf.push_back(cdf.back() + f(k));
+        std::vector<float> u;
+        for (int k = 0; k < n; ++k) {
+            const double lo = cdf[k] / cdf.back(), hi = cdf[k + 1] / cdf.back();
+            float below = static_cast<float>(hi);
+            for (int step = 0; step < 3; ++step) {
+                below = std::nextafter(below, 0.f);
+                u.push_back(std::min(below, 0x1.fffffep-1f));
+            }
+            u.push_back(static_cast<float>(lo));
+            u.push_back(static_cast<float>(0.5 * (lo + hi)));
+        }
+        return u;
+    };
+    const std::vector<float> u_x = probes(a, width), u_y = probes(b, height);
+    int near_edge = 0;
+    for (const float ux : u_x) {
+        for (const float uy : u_y) {
+            float pdf = 0.f;
+            const Vec2f p = d.sample({ux, uy}, &pdf);
+            ASSERT_GE(p.x(), 0.f);
+            ASSERT_LT(p.x(), 1.f);
+            ASSERT_GE(p.y(), 0.f);
+            ASSERT_LT(p.y(), 1.f);
+            ASSERT_EQ(pdf, d.pdf_area(p)) << ux << " " << uy << " -> " << p.transpose();
+            const float fx = p.x() * width;
+            if (fx - std::floor(fx) > 0.99999f) ++near_edge;
+        }
+    }
+    // The probes reach the edges: many points within 1e-5 of a cell's width below one.
+    EXPECT_GT(near_edge, width * height);
 }
 
 }  // namespace
