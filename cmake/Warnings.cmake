@@ -15,6 +15,8 @@ endfunction()
 function(gdmlt_add_module name)
   cmake_parse_arguments(ARG "" "" "PUBLIC;PRIVATE" ${ARGN})
   file(GLOB_RECURSE sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cpp)
+  # Sources under a plugins/ folder are modules loaded at run time, built by their own targets.
+  list(FILTER sources EXCLUDE REGEX "/plugins/")
   if(sources)
     add_library(gdmlt_${name} STATIC ${sources})
     target_include_directories(gdmlt_${name} PUBLIC ${PROJECT_SOURCE_DIR})

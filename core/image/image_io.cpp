@@ -5,8 +5,9 @@
 // the channel names of every layer ("primal.R", ...), float32 storage, ZIP compression and
 // arbitrary string attributes in the header, and OpenEXR's FrameBuffer lets us write straight from
 // our interleaved buffers (xStride/yStride) without a copy. OpenImageIO would rename or reorder
-// channels and attributes in ways we would have to undo. PNG and "any other format" reading go
-// through OpenImageIO, which handles the codecs.
+// channels and attributes in ways we would have to undo. PNG previews are encoded by libpng;
+// images in other formats are read through OpenImageIO, loaded only then (core/image/oiio_codec.h
+// says why).
 #include "core/image/image_io.h"
 
 #include <OpenEXR/ImfChannelList.h>
@@ -16,9 +17,9 @@
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStringAttribute.h>
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
+#include <dlfcn.h>
 #include <fcntl.h>
+#include <png.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -32,6 +33,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "core/image/oiio_codec.h"
 #include "core/scene/scene_desc.h"
 
 namespace gdmlt {
@@ -51,7 +53,7 @@ fs::path temp_path_beside(const std::string& path) {
         if (ec)
             throw OutputError("cannot create directory '" + parent.string() + "': " + ec.message());
     }
-    // Keep the extension last: OpenImageIO picks the format from it.
+    // Keep the extension last, so that a tool can tell the format from it.
     // Built with appends: GCC 12 gives a false -Wrestrict on `"." + std::string` at -O2.
     std::string name(1, '.');
     name.append(target.stem().string());
@@ -139,6 +141,78 @@ int channel_rank(const std::string& c) {
     for (int i = 0; i < 7; ++i)
         if (c == order[i]) return i;
     return 7;
+}
+
+/// The OpenImageIO codec's read function, from the module loaded on the first call (see
+/// core/image/oiio_codec.h). Looked for at $GDMLT_OIIO_CODEC, beside the executable, in
+/// ../lib/gdmlt from it, then where the build put it. Throws InputError naming `image_path`
+/// and the places tried when it cannot be loaded.
+gdmlt_oiio_read_image_fn oiio_codec(const std::string& image_path) {
+    struct Loaded {
+        gdmlt_oiio_read_image_fn read = nullptr;
+        std::string problem;
+    };
+    static const Loaded loaded = [] {
+        Loaded l;
+        std::vector<std::string> candidates;
+        if (const char* env = std::getenv("GDMLT_OIIO_CODEC"); env && *env)
+            candidates.emplace_back(env);
+        std::error_code ec;
+        const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+        const char* const name = "libgdmlt_oiio_codec.so";
+        if (!ec) {
+            candidates.push_back((exe.parent_path() / name).string());
+            candidates.push_back((exe.parent_path() / ".." / "lib" / "gdmlt" / name).string());
+        }
+        candidates.emplace_back(GDMLT_OIIO_CODEC_BUILD_PATH);
+        for (const std::string& candidate : candidates) {
+            if (!fs::exists(candidate, ec)) {
+                l.problem += (l.problem.empty() ? "" : ", ") + candidate + " (absent)";
+                continue;
+            }
+            void* handle = ::dlopen(candidate.c_str(), RTLD_NOW | RTLD_LOCAL);
+            void* symbol = handle ? ::dlsym(handle, "gdmlt_oiio_read_image") : nullptr;
+            if (symbol) {
+                l.read = reinterpret_cast<gdmlt_oiio_read_image_fn>(symbol);
+                return l;
+            }
+            const char* why = ::dlerror();
+            l.problem += (l.problem.empty() ? "" : ", ") + candidate + " (" +
+                         (why ? why : "no gdmlt_oiio_read_image") + ")";
+        }
+        return l;
+    }();
+    if (!loaded.read)
+        throw InputError(image_path +
+                         ": cannot read image: the OpenImageIO codec module is missing: tried " +
+                         loaded.problem);
+    return loaded.read;
+}
+
+/// Reads an EXR whose channels are R, G, B (and A) or Y (and A), without layers, the way
+/// OpenImageIO would (in that order, float); returns false for any other EXR and for files that
+/// are not EXR (by their magic number), which then go to OpenImageIO.
+bool read_plain_exr(const std::string& path, Image& image) {
+    {
+        std::ifstream in(path, std::ios::binary);
+        unsigned char magic[4] = {};
+        if (!in.read(reinterpret_cast<char*>(magic), 4) ||
+            !(magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01))
+            return false;
+    }
+    std::vector<ExrLayer> layers;
+    try {
+        layers = read_exr(path);
+    } catch (const InputError&) {
+        return false;  // OpenImageIO says what is wrong with it
+    }
+    if (layers.size() != 1 || !layers.front().name.empty()) return false;
+    std::string channels;
+    for (const std::string& c : layers.front().channel_names) channels += c + ",";
+    if (channels != "R,G,B," && channels != "R,G,B,A," && channels != "Y," && channels != "Y,A,")
+        return false;
+    image = std::move(layers.front().image);
+    return true;
 }
 
 }  // namespace
@@ -372,17 +446,23 @@ void OutputFiles::add_png_srgb(const std::string& path, const Image& rgb, float 
 
     // Encoded in memory (a preview is small), then written with checked calls: libpng does not
     // report every failed write (a full disk left a truncated PNG and exit code 0).
-    std::vector<unsigned char> encoded;
-    OIIO::Filesystem::IOVecOutput memory(encoded);
-    auto out = OIIO::ImageOutput::create("png");
-    if (!out || !out->supports("ioproxy"))
-        throw OutputError("cannot create PNG writer for '" + path + "'");
-    OIIO::ImageSpec spec(rgb.width, rgb.height, out_channels, OIIO::TypeDesc::UINT8);
-    bool ok = out->set_ioproxy(&memory) && out->open(path, spec) &&
-              out->write_image(OIIO::TypeDesc::UINT8, bytes.data());
-    ok = out->close() && ok;
-    if (!ok) throw OutputError("cannot encode PNG '" + path + "': " + out->geterror());
-    out.reset();
+    // libpng's simplified API (1.6): 8-bit sRGB-encoded samples, as the preview's are.
+    png_image image{};
+    image.version = PNG_IMAGE_VERSION;
+    image.width = static_cast<png_uint_32>(rgb.width);
+    image.height = static_cast<png_uint_32>(rgb.height);
+    image.format = out_channels == 3 ? PNG_FORMAT_RGB : PNG_FORMAT_GRAY;
+    png_alloc_size_t size = 0;
+    bool ok = png_image_write_to_memory(&image, nullptr, &size, 0, bytes.data(), 0, nullptr) != 0;
+    std::vector<unsigned char> encoded(ok ? size : 0);
+    ok = ok &&
+         png_image_write_to_memory(&image, encoded.data(), &size, 0, bytes.data(), 0, nullptr) != 0;
+    if (!ok) {
+        const std::string reason = image.message;
+        png_image_free(&image);
+        throw OutputError("cannot encode PNG '" + path + "': " + reason);
+    }
+    encoded.resize(size);
     const fs::path temporary = temp_path_beside(path);
     staged_.push_back({path, temporary.string()});  // from here on removed on failure
     CheckedFile file(temporary, path);
@@ -397,16 +477,28 @@ Image read_image(const std::string& path) {
 Image read_image(const std::string& path, ImageFileInfo* info) {
     if (const std::string problem = input_file_problem(path); !problem.empty())
         throw InputError(path + ": " + problem);
-    auto in = OIIO::ImageInput::open(path);
-    if (!in) throw InputError(path + ": cannot read image: " + OIIO::geterror());
-    const OIIO::ImageSpec& spec = in->spec();
-    if (info) info->integer_format = !spec.format.is_floating_point();
-    Image image(spec.width, spec.height, spec.nchannels);
-    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
-        const std::string err = in->geterror();
-        throw InputError(path + ": cannot read image: " + err);
+    if (Image image; read_plain_exr(path, image)) {
+        if (info) info->integer_format = false;
+        return image;
     }
-    in->close();
+    const gdmlt_oiio_read_image_fn read = oiio_codec(path);
+    Image image;
+    const gdmlt_oiio_allocate allocate = [](void* user, int width, int height,
+                                            int channels) -> float* {
+        if (width <= 0 || height <= 0 || channels <= 0) return nullptr;
+        try {
+            Image& target = *static_cast<Image*>(user);
+            target = Image(width, height, channels);
+            return target.pixels.data();
+        } catch (const std::bad_alloc&) {
+            return nullptr;
+        }
+    };
+    int integer_format = 0;
+    char error[512] = {};
+    if (read(path.c_str(), allocate, &image, &integer_format, error, sizeof error) != 0)
+        throw InputError(path + ": cannot read image: " + error);
+    if (info) info->integer_format = integer_format != 0;
     return image;
 }
 

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <gtest/gtest.h>
+#include <link.h>
 #include <sys/stat.h>
 
 #include <cmath>
@@ -77,6 +78,66 @@ TEST_F(ImageIoTest, PngIsWrittenAndReadableWithTheRightSize) {
     EXPECT_EQ(read.channels, 3);
     EXPECT_FLOAT_EQ(read(20, 8, 0), 1.f);
     EXPECT_FLOAT_EQ(read(0, 0, 1), 0.f);  // NaN shown as black
+}
+
+/// Whether a shared library whose file name contains `name` is loaded in this process.
+bool library_loaded(const std::string& name) {
+    struct Search {
+        std::string name;
+        bool found = false;
+    } search{name};
+    ::dl_iterate_phdr(
+        [](dl_phdr_info* info, std::size_t, void* data) {
+            auto* s = static_cast<Search*>(data);
+            if (info->dlpi_name && std::string(info->dlpi_name).find(s->name) != std::string::npos)
+                s->found = true;
+            return 0;
+        },
+        &search);
+    return search.found;
+}
+
+TEST_F(ImageIoTest, OpenImageIoIsLoadedOnlyToReadAFormatOtherThanExr) {
+    // Linked in, OpenImageIO's 250 libraries took 0.33 s of every start-up
+    // (core/image/oiio_codec.h). Writing EXR and PNG and reading EXR must not load it; reading
+    // a PNG must, and give the pixels back. Each test is a process of its own under ctest;
+    // run with the others in one process, a test before this one may have read a PNG.
+    if (library_loaded("libgdmlt_oiio_codec")) GTEST_SKIP() << "the codec was loaded already";
+    ASSERT_FALSE(library_loaded("libOpenImageIO")) << "linked into the test executable";
+    Image img(5, 4, 3, 0.25f);
+    img(4, 3, 2) = 3.5f;
+    img(1, 2, 0) = -1.f;
+    const std::string exr = (dir_ / "rgb.exr").string(), png = (dir_ / "rgb.png").string();
+    write_exr(exr, {{"", {"R", "G", "B"}, img}});
+    write_png_srgb(png, img);
+    ImageFileInfo info;
+    info.integer_format = true;
+    const Image from_exr = read_image(exr, &info);
+    EXPECT_EQ(from_exr, img);
+    EXPECT_FALSE(info.integer_format);
+    EXPECT_FALSE(library_loaded("libOpenImageIO"));
+    const Image from_png = read_image(png, &info);
+    EXPECT_TRUE(library_loaded("libOpenImageIO"));
+    EXPECT_TRUE(info.integer_format);
+    EXPECT_EQ(from_png.width, 5);
+    EXPECT_FLOAT_EQ(from_png(4, 3, 2), 1.f);  // clamped to white
+    EXPECT_FLOAT_EQ(from_png(0, 0, 0), std::round(255.f * linear_to_srgb(0.25f)) / 255.f);
+}
+
+TEST_F(ImageIoTest, ExrOfAnyLayoutReadsAsOpenImageIoReadsIt) {
+    // read_image reads EXRs of R, G, B (A) or Y (A) itself, and gives every other EXR to
+    // OpenImageIO: both ways give the channels OpenImageIO's order and values. Checked against
+    // OpenImageIO directly through the codec by a file it must take (a named layer).
+    const Image rgba = test::ramp_image(6, 3, 4, 0.5f), y = test::ramp_image(6, 3, 1, 2.f);
+    const std::string a = (dir_ / "rgba.exr").string(), b = (dir_ / "y.exr").string(),
+                      c = (dir_ / "layer.exr").string();
+    write_exr(a, {{"", {"R", "G", "B", "A"}, rgba}});
+    write_exr(b, {{"", {"Y"}, y}});
+    write_exr(c, {{"diffuse", {"R", "G", "B"}, test::ramp_image(6, 3, 3, 1.f)}});
+    EXPECT_EQ(read_image(a), rgba);
+    EXPECT_EQ(read_image(b), y);
+    const Image layer = read_image(c);  // OpenImageIO's reading
+    EXPECT_EQ(layer, test::ramp_image(6, 3, 3, 1.f));
 }
 
 TEST_F(ImageIoTest, MissingFileIsAnInputErrorNamingTheFile) {
