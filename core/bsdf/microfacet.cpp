@@ -8,8 +8,12 @@ namespace {
 
 constexpr double kInvSqrtPiD = 0.56418958354775628695;  // 1 / sqrt(pi)
 
-/// Inverse error function in double: Giles 2010 ("Approximating the erfinv function", GPU Gems
-/// 4) single-precision polynomial as the start, then Newton steps on erf(y) = x in double.
+/// Inverse error function: Giles 2010 ("Approximating the erfinv function", GPU Gems 4), the
+/// single-precision polynomials evaluated in double, within 2e-7 of erfinv relative to its
+/// value (measured 1.7e-7 on 2e5 floats of (-1, 1)): float precision, which is all the sampled
+/// normal (a float) keeps. Two Newton steps
+/// on erf(y) = x used to refine it to double precision, at two erf and two exp each, a quarter
+/// of the Beckmann visible-normal sampler's time for digits the float result drops.
 double erfinv_double(double x) {
     x = std::clamp(x, -1.0 + 1e-15, 1.0 - 1e-15);
     double w = -std::log((1.0 - x) * (1.0 + x));
@@ -37,15 +41,7 @@ double erfinv_double(double x) {
         p = 1.00167406 + p * w;
         p = 2.83297682 + p * w;
     }
-    double y = p * x;
-    // The approximation is good to ~1e-7 relative; two Newton steps make it exact in double
-    // (d erf / dy = 2 / sqrt(pi) exp(-y^2)).
-    for (int i = 0; i < 2; ++i) {
-        const double slope = 2.0 * kInvSqrtPiD * std::exp(-y * y);
-        if (!(slope > 0.0)) break;
-        y -= (std::erf(y) - x) / slope;
-    }
-    return y;
+    return p * x;
 }
 
 /// Samples the x slope of the visible Beckmann normals with alpha = 1 for a direction at
