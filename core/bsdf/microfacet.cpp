@@ -11,9 +11,9 @@ constexpr double kInvSqrtPiD = 0.56418958354775628695;  // 1 / sqrt(pi)
 /// Inverse error function: Giles 2010 ("Approximating the erfinv function", GPU Gems 4), the
 /// single-precision polynomials evaluated in double, within 2e-7 of erfinv relative to its
 /// value (measured 1.7e-7 on 2e5 floats of (-1, 1)): float precision, which is all the sampled
-/// normal (a float) keeps. Two Newton steps
-/// on erf(y) = x used to refine it to double precision, at two erf and two exp each, a quarter
-/// of the Beckmann visible-normal sampler's time for digits the float result drops.
+/// normal (a float) keeps. Two Newton steps on erf(y) = x used to refine it to double precision,
+/// at two erf and two exp each, a quarter of the Beckmann visible-normal sampler's time for
+/// digits the float result drops.
 double erfinv_double(double x) {
     x = std::clamp(x, -1.0 + 1e-15, 1.0 - 1e-15);
     double w = -std::log((1.0 - x) * (1.0 + x));

@@ -126,7 +126,7 @@ EnvmapData make_envmap_data(int width, int height, std::vector<Rgb> texels) {
 
 Rgb EnvmapEmitter::eval(const Vec3f& d_world) const {
     const Vec3f d = local_from_world * d_world;
-    return data->lookup(envmap_uv(d, sin_theta_of(d))) * scale;
+    return radiance_at(envmap_uv(d, sin_theta_of(d)));
 }
 
 EnvmapEmitter::Sample EnvmapEmitter::sample_direction(const Vec2f& u) const {
@@ -145,7 +145,7 @@ EnvmapEmitter::Sample EnvmapEmitter::sample_direction(const Vec2f& u) const {
 
 EnvmapEmitter::Sample EnvmapEmitter::sample(const Vec2f& u) const {
     Sample s = sample_direction(u);
-    if (s.pdf_solid_angle > 0.f) s.radiance = data->lookup(s.uv) * scale;
+    if (s.pdf_solid_angle > 0.f) s.radiance = radiance_at(s.uv);
     return s;
 }
 
@@ -158,7 +158,7 @@ EnvmapEmitter::Value EnvmapEmitter::eval_with_pdf(const Vec3f& d_world) const {
     const float sin_theta = sin_theta_of(d);
     const Vec2f uv = envmap_uv(d, sin_theta);
     Value v;
-    v.radiance = data->lookup(uv) * scale;
+    v.radiance = radiance_at(uv);
     if (sin_theta > 0.f)
         v.pdf_solid_angle = data->distribution.pdf_area(uv) / (2.f * kPi * kPi * sin_theta);
     return v;

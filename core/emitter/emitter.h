@@ -101,6 +101,8 @@ struct EnvmapEmitter {
     /// sample() without the radiance (left zero): for callers that evaluate the direction
     /// themselves (Scene sums every infinite emitter along it).
     Sample sample_direction(const Vec2f& u) const;
+    /// Radiance at a point (u, v) of the map, `scale` applied.
+    Rgb radiance_at(const Vec2f& uv) const { return data->lookup(uv) * scale; }
     float pdf_solid_angle(const Vec3f& d) const;
     /// eval() and pdf_solid_angle() from one direction -> (u, v) map: what an escaping ray
     /// needs, at half the trigonometry of the two calls.

@@ -189,9 +189,9 @@ gdmlt_oiio_read_image_fn oiio_codec(const std::string& image_path) {
     return loaded.read;
 }
 
-/// Reads an EXR whose channels are R, G, B (and A) or Y (and A), without layers, the way
-/// OpenImageIO would (in that order, float); returns false for any other EXR and for files that
-/// are not EXR (by their magic number), which then go to OpenImageIO.
+/// Reads an EXR whose channels are R, G, B (and A) or Y, without layers, the way OpenImageIO
+/// would (in that order, float); returns false for any other EXR and for files that are not EXR
+/// (by their magic number), which then go to OpenImageIO.
 bool read_plain_exr(const std::string& path, Image& image) {
     {
         std::ifstream in(path, std::ios::binary);
@@ -209,8 +209,8 @@ bool read_plain_exr(const std::string& path, Image& image) {
     if (layers.size() != 1 || !layers.front().name.empty()) return false;
     std::string channels;
     for (const std::string& c : layers.front().channel_names) channels += c + ",";
-    if (channels != "R,G,B," && channels != "R,G,B,A," && channels != "Y," && channels != "Y,A,")
-        return false;
+    // (read_exr puts A before Y, so a Y and A image is left to OpenImageIO's order.)
+    if (channels != "R,G,B," && channels != "R,G,B,A," && channels != "Y,") return false;
     image = std::move(layers.front().image);
     return true;
 }
