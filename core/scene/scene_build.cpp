@@ -467,6 +467,9 @@ struct Builder {
         const std::string fov_axis = props.get_string("fov_axis", "x");
         const auto near_clip = static_cast<float>(props.get_float("near_clip", 0.01));
         props.ignore("far_clip");
+        // Mitsuba 3's projective cameras all read focus_distance; only the thin lens uses it,
+        // so a pinhole camera given one (Mitsuba's own cbox.xml) renders as without it.
+        props.ignore("focus_distance");
         const Transform world_from_camera = props.get_transform("to_world");
         check_world_point(world_from_camera.apply_point(Vec3d(Vec3d::Zero())),
                           props.loc_of("to_world"), "the camera");

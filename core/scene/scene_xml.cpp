@@ -297,6 +297,12 @@ class SceneParser {
         include_stack_.push_back(file_identity(path));
         parse_children(root, context, scene_.root);
         include_stack_.pop_back();
+        // Files named by properties are looked up once the whole scene is read, as Mitsuba 3's
+        // plugins do after parsing: every <path>, also one written after the property, counts.
+        for (const PendingFilename& f : pending_filenames_) {
+            Property& property = object(f.object).properties.at(f.property);
+            property.value = resolve_path(f.written, f.directory).string();
+        }
         return std::move(scene_);
     }
 
@@ -420,6 +426,10 @@ class SceneParser {
             object(parent).children.push_back(ChildRef{std::move(name), child, loc});
         } else if (is_property_tag(tag)) {
             Property property = parse_property(element, context, loc);
+            if (property.name == "filename")
+                if (const auto* written = std::get_if<std::string>(&property.value))
+                    pending_filenames_.push_back(PendingFilename{
+                        parent, object(parent).properties.size(), *written, context.directory});
             object(parent).properties.push_back(std::move(property));
         } else if (tag == "ref") {
             parse_ref(element, context, loc, parent);
@@ -431,6 +441,8 @@ class SceneParser {
             parameters_.try_emplace(name, value);
         } else if (tag == "include") {
             parse_include(element, context, loc, parent);
+        } else if (tag == "path") {
+            parse_search_path(element, context, loc, parent);
         } else if (tag == "alias") {
             const std::string id = required_attribute(element, "id", loc);
             const std::string alias = required_attribute(element, "as", loc);
@@ -513,7 +525,7 @@ class SceneParser {
                        const FileLoc& loc, int parent) {
         const std::string filename = required_attribute(element, "filename", loc);
         reject_children(element, context);
-        const fs::path path = resolve_path(filename, context);
+        const fs::path path = resolve_path(filename, context.directory);
         const std::string identity = file_identity(path);
         if (std::find(include_stack_.begin(), include_stack_.end(), identity) !=
             include_stack_.end()) {
@@ -542,10 +554,42 @@ class SceneParser {
         include_stack_.pop_back();
     }
 
-    static fs::path resolve_path(const std::string& filename, const FileContext& context) {
+    /// Mitsuba 3's <path value="..."/>: a directory searched for files named by relative paths,
+    /// before the others (FileResolver::prepend). Only directly inside the root <scene>; a
+    /// relative value is taken from the file's directory, else from the search path.
+    void parse_search_path(const pugi::xml_node& element, const FileContext& context,
+                           const FileLoc& loc, int parent) {
+        const std::string value = required_attribute(element, "value", loc);
+        reject_children(element, context);
+        if (parent != scene_.root) throw InputError(loc, "<path> can only be a child of <scene>");
+        fs::path directory(value);
+        if (directory.is_relative()) {
+            directory = (context.directory / directory).lexically_normal();
+            std::error_code error;
+            if (!fs::is_directory(directory, error))
+                directory = resolve_path(value, context.directory);
+        }
+        std::error_code error;
+        if (!fs::is_directory(directory, error))
+            throw InputError(loc, "<path>: folder " + in_quotes(directory.string()) + " not found");
+        search_paths_.insert(search_paths_.begin(), directory);
+    }
+
+    /// A relative file name: the first of the <path> directories (the latest first) and the
+    /// directory of the file it is written in (`directory`) where it exists, else the latter's
+    /// (whose absence the reader reports). Mitsuba 3 looks in the <path>s, the scene's directory
+    /// and the working directory, and not in an included file's own directory; looking there
+    /// too keeps included files that live elsewhere finding their meshes and textures.
+    fs::path resolve_path(const std::string& filename, const fs::path& directory) const {
         const fs::path path(filename);
-        if (path.is_absolute() || context.directory.empty()) return path;
-        return (context.directory / path).lexically_normal();
+        if (path.is_absolute()) return path;
+        const fs::path own = directory.empty() ? path : (directory / path).lexically_normal();
+        std::error_code error;
+        for (const fs::path& base : search_paths_) {
+            fs::path candidate = (base / path).lexically_normal();
+            if (fs::exists(candidate, error)) return candidate;
+        }
+        return own;
     }
 
     // --- properties -----------------------------------------------------------------------
@@ -573,7 +617,7 @@ class SceneParser {
             std::string value = required_attribute(element, "value", loc);
             // Paths are relative to the file they are written in, so included files that
             // live elsewhere still find their meshes and textures.
-            if (property.name == "filename") value = resolve_path(value, context).string();
+            // (a "filename" is resolved against the search path once the scene is read).
             property.value = std::move(value);
         } else if (tag == "rgb" || tag == "srgb") {
             property.value =
@@ -702,6 +746,15 @@ class SceneParser {
     std::map<std::string, std::string> parameters_;  // -D defines, then <default>s
     std::map<std::string, int> ids_;                 // id or alias -> object index
     std::vector<std::string> include_stack_;         // files being parsed, outermost first
+    std::vector<fs::path> search_paths_;             // <path> directories, the latest first
+    /// A "filename" property as written, resolved when the whole scene has been read.
+    struct PendingFilename {
+        int object = -1;
+        std::size_t property = 0;  // index in the object's properties
+        std::string written;
+        fs::path directory;  // of the file it is written in
+    };
+    std::vector<PendingFilename> pending_filenames_;
     static constexpr int kMaxObjectNesting = 256;
     static constexpr int kMaxIncludes = 10000;
     int includes_ = 0;      // <include> elements processed so far, repeats counted

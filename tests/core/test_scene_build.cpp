@@ -157,6 +157,25 @@ TEST(SceneBuild, GeometryAndCamerasBeyondTheTraceableWorldAreErrorsNotAborts) {
         "");
 }
 
+TEST(SceneBuild, APinholeCameraTakesAFocusDistanceWithoutEffect) {
+    // Mitsuba 3's projective cameras all read focus_distance, and its own cbox.xml gives one
+    // to its pinhole camera: accepted, and the camera's rays are those of the same camera
+    // without it.
+    const std::string camera = R"(<sensor type="perspective"><float name="fov" value="30"/>
+        <transform name="to_world"><lookat origin="0, 1, 5" target="0, 0, 0" up="0, 1, 0"/>
+        </transform>)";
+    const Scene plain = test::scene_from_xml(camera + "</sensor>" + kLight);
+    const Scene focused = test::scene_from_xml(
+        camera + R"(<float name="focus_distance" value="2.5"/></sensor>)" + kLight);
+    for (const Vec2f film_position : {Vec2f(0.5f, 0.5f), Vec2f(10.25f, 3.75f)}) {
+        const Ray a = plain.camera().generate_ray(film_position);
+        const Ray b = focused.camera().generate_ray(film_position);
+        EXPECT_EQ(a.origin, b.origin);
+        EXPECT_EQ(a.direction, b.direction);
+        EXPECT_EQ(a.t_max, b.t_max);
+    }
+}
+
 TEST(SceneBuild, RectangleFacesAlongItsTransformedNormal) {
     // Mitsuba's rectangle spans [-1,1]^2 at z = 0 facing +z; rotating by -90 degrees about x
     // turns it into a floor at y = -1 facing +y.

@@ -362,6 +362,71 @@ TEST(SceneXml, InlinesIncludedFilesRelativeToTheIncludingFile) {
               dir.path() / "parts/meshes/bunny.obj");
 }
 
+TEST(SceneXml, PathTagsAreSearchedForFilesAndIncludesLatestFirst) {
+    // Mitsuba 3's <path value="..."/> (96 of the scenes in its data repository use it): files
+    // named by relative paths are looked for in the <path> directories, the latest first, and
+    // then beside the file that names them. A <path> written after the property counts too:
+    // Mitsuba's plugins resolve their files once the whole scene has been read.
+    const TempDir dir;
+    dir.write("textures/wood.png", "not read here");
+    dir.write("fragments/wood.png", "not read here");
+    dir.write("scenes/wood.png", "not read here");
+    dir.write("meshes/bunny.obj", "not read here");
+    dir.write("fragments/part.xml", R"(<scene version="3.0.0">
+    <shape type="obj" id="bunny"><string name="filename" value="bunny.obj"/></shape>
+</scene>)");
+    const fs::path main = dir.write("scenes/main.xml", R"(<scene version="3.0.0">
+    <path value="../textures"/>
+    <path value="../fragments"/>
+    <include filename="part.xml"/>
+    <texture type="bitmap" id="found">
+        <string name="filename" value="wood.png"/>
+    </texture>
+    <texture type="bitmap" id="missing">
+        <string name="filename" value="nowhere.png"/>
+    </texture>
+    <path value="../meshes"/>
+</scene>)");
+    const SceneDesc scene = parse_scene_file(main.string());
+    const ObjectDesc& root = scene.root_object();
+    const ObjectDesc& shape = child_with_tag(scene, root, "shape");
+    EXPECT_EQ(fs::path(property_value<std::string>(shape, "filename")),
+              dir.path() / "meshes/bunny.obj");
+    const ObjectDesc* found = nullptr;
+    const ObjectDesc* missing = nullptr;
+    for (const ChildRef& child : root.children) {
+        const ObjectDesc& o = scene.objects[static_cast<std::size_t>(child.object)];
+        if (o.id == "found") found = &o;
+        if (o.id == "missing") missing = &o;
+    }
+    ASSERT_TRUE(found && missing);
+    // In all three: the latest <path> wins, over the scene's own directory too.
+    EXPECT_EQ(fs::path(property_value<std::string>(*found, "filename")),
+              dir.path() / "fragments/wood.png");
+    // Found nowhere: named beside the file that names it, for the reader's message.
+    EXPECT_EQ(fs::path(property_value<std::string>(*missing, "filename")),
+              dir.path() / "scenes/nowhere.png");
+}
+
+TEST(SceneXml, APathTagMustNameAFolderAndSitInTheScene) {
+    const TempDir dir;
+    const fs::path main = dir.write(
+        "main.xml", "<scene version=\"3.0.0\">\n\n  <path value=\"no_such_folder\"/>\n</scene>\n");
+    try {
+        parse_scene_file(main.string());
+        FAIL() << "no InputError";
+    } catch (const InputError& error) {
+        const std::string message = error.what();
+        EXPECT_EQ(message.rfind(main.string() + ":3:", 0), 0u) << message;
+        EXPECT_NE(message.find("no_such_folder"), std::string::npos) << message;
+    }
+    const std::string nested = input_error_message(
+        "<scene version=\"3.0.0\">\n<shape type=\"obj\">\n<path value=\".\"/>\n</shape>\n"
+        "</scene>",
+        "nested.xml", 3);
+    EXPECT_NE(nested.find("<path>"), std::string::npos) << nested;
+}
+
 TEST(SceneXml, ErrorInIncludedFileNamesThatFileAndLine) {
     const TempDir dir;
     dir.write("part.xml", "<scene version=\"3.0.0\">\n\n<shap type=\"obj\"/>\n</scene>\n");
