@@ -525,7 +525,7 @@ class SceneParser {
                        const FileLoc& loc, int parent) {
         const std::string filename = required_attribute(element, "filename", loc);
         reject_children(element, context);
-        const fs::path path = resolve_path(filename, context.directory);
+        const fs::path path = resolve_include(filename, context.directory);
         const std::string identity = file_identity(path);
         if (std::find(include_stack_.begin(), include_stack_.end(), identity) !=
             include_stack_.end()) {
@@ -573,6 +573,22 @@ class SceneParser {
         if (!fs::is_directory(directory, error))
             throw InputError(loc, "<path>: folder " + in_quotes(directory.string()) + " not found");
         search_paths_.insert(search_paths_.begin(), directory);
+    }
+
+    /// An included file, as Mitsuba 3 finds it: beside the including file, else beside the
+    /// files that include that one (the innermost first: an include names "include/x.xml" and
+    /// that file "include/y.xml", both from the scene's directory), else on the search path.
+    fs::path resolve_include(const std::string& filename, const fs::path& directory) const {
+        const fs::path path(filename);
+        if (path.is_absolute()) return path;
+        std::error_code error;
+        const fs::path own = directory.empty() ? path : (directory / path).lexically_normal();
+        if (fs::exists(own, error)) return own;
+        for (auto file = include_stack_.rbegin(); file != include_stack_.rend(); ++file) {
+            fs::path candidate = (fs::path(*file).parent_path() / path).lexically_normal();
+            if (fs::exists(candidate, error)) return candidate;
+        }
+        return resolve_path(filename, directory);
     }
 
     /// A relative file name: the first of the <path> directories (the latest first) and the

@@ -176,6 +176,20 @@ TEST(SceneBuild, APinholeCameraTakesAFocusDistanceWithoutEffect) {
     }
 }
 
+TEST(SceneBuild, AMomentIntegratorRendersItsFirstNestedIntegrator) {
+    // Mitsuba 3's test scenes wrap their integrator in `moment`, whose image is the first
+    // nested integrator's.
+    const Scene scene = test::scene_from_xml(R"(<integrator type="moment">
+        <integrator type="bdpt" name="first"><integer name="max_depth" value="3"/></integrator>
+        <integrator type="path" name="second"/></integrator>)" +
+                                             kLight);
+    EXPECT_EQ(scene.integrator().type, "bdpt");
+    EXPECT_EQ(scene.integrator().max_depth, 3);
+    const std::string message = build_error("\n<integrator type=\"moment\"></integrator>" + kLight);
+    EXPECT_NE(message.find("test.xml:3"), std::string::npos) << message;
+    EXPECT_NE(message.find("nested"), std::string::npos) << message;
+}
+
 TEST(SceneBuild, RectangleFacesAlongItsTransformedNormal) {
     // Mitsuba's rectangle spans [-1,1]^2 at z = 0 facing +z; rotating by -90 degrees about x
     // turns it into a floor at y = -1 facing +y.

@@ -408,6 +408,26 @@ TEST(SceneXml, PathTagsAreSearchedForFilesAndIncludesLatestFirst) {
               dir.path() / "scenes/nowhere.png");
 }
 
+TEST(SceneXml, AnIncludeIsFoundBesideTheFilesThatIncludeItsIncluder) {
+    // Mitsuba 3's participating_media scenes: scene.xml includes "include/base.xml", which
+    // includes "include/preamble.xml", meant from the scene's directory (Mitsuba's resolver
+    // keeps the outer files' directories after the including file's own).
+    const TempDir dir;
+    dir.write("include/preamble.xml", R"(<scene version="3.0.0"><default name="spp" value="3"/>
+    <integrator type="path" id="found"/></scene>)");
+    dir.write("include/base.xml", R"(<scene version="3.0.0">
+    <include filename="include/preamble.xml"/></scene>)");
+    const fs::path main = dir.write("scene.xml", R"(<scene version="3.0.0">
+    <include filename="include/base.xml"/></scene>)");
+    const SceneDesc scene = parse_scene_file(main.string());
+    EXPECT_EQ(child_with_tag(scene, scene.root_object(), "integrator").id, "found");
+    // Beside the including file wins.
+    dir.write("include/include/preamble.xml", R"(<scene version="3.0.0">
+    <integrator type="path" id="nearer"/></scene>)");
+    const SceneDesc nearer = parse_scene_file(main.string());
+    EXPECT_EQ(child_with_tag(nearer, nearer.root_object(), "integrator").id, "nearer");
+}
+
 TEST(SceneXml, APathTagMustNameAFolderAndSitInTheScene) {
     const TempDir dir;
     const fs::path main = dir.write(
