@@ -408,7 +408,10 @@ struct Builder {
             } else if (obj.tag == "bsdf") {
                 bsdf_index(child.object);  // declared for later refs; built once
             } else if (obj.tag == "emitter") {
-                build_emitter(obj, -1);
+                // An area emitter declared at the top for the shapes that <ref> it (Mitsuba's
+                // cbox-rgb.xml) is built as theirs; as in Mitsuba 3, not on its own.
+                if (!(obj.type == "area" && referenced_by_a_shape(child.object)))
+                    build_emitter(obj, -1);
             } else if (obj.tag == "sensor") {
                 if (has_camera) throw InputError(obj.loc, "only one <sensor> is supported");
                 build_sensor(obj);
@@ -874,6 +877,14 @@ struct Builder {
             throw InputError(props.loc_of("to_world"),
                              "to_world of this emitter must be a rotation (no scale)");
         return linear.cast<float>();
+    }
+
+    bool referenced_by_a_shape(int object_index) const {
+        for (const ObjectDesc& o : desc.objects)
+            if (o.tag == "shape")
+                for (const ChildRef& c : o.children)
+                    if (c.object == object_index) return true;
+        return false;
     }
 
     void build_emitter(const ObjectDesc& obj, int shape_index) {

@@ -297,6 +297,7 @@ class SceneParser {
         include_stack_.push_back(file_identity(path));
         parse_children(root, context, scene_.root);
         include_stack_.pop_back();
+        resolve_refs();
         // Files named by properties are looked up once the whole scene is read, as Mitsuba 3's
         // plugins do after parsing: every <path>, also one written after the property, counts.
         for (const PendingFilename& f : pending_filenames_) {
@@ -501,9 +502,7 @@ class SceneParser {
 
     int lookup_id(const std::string& id, const FileLoc& loc) const {
         const auto found = ids_.find(id);
-        if (found == ids_.end())
-            throw InputError(loc, "reference to unknown id " + in_quotes(id) +
-                                      " (ids must be defined before they are referenced)");
+        if (found == ids_.end()) throw InputError(loc, "reference to unknown id " + in_quotes(id));
         return found->second;
     }
 
@@ -513,12 +512,58 @@ class SceneParser {
         std::string name = attribute(element, "name", loc).value_or("");
         if (context.legacy_names) name = camel_to_snake(name);
         reject_children(element, context);
-        const int target = lookup_id(id, loc);
         if (parent == scene_.root)
             throw InputError(loc, "<ref id=" + in_quotes(id) +
                                       "> directly inside <scene> has no effect; put it inside "
                                       "the object that uses it");
-        object(parent).children.push_back(ChildRef{std::move(name), target, loc});
+        // Resolved once the scene is read: Mitsuba 3 lets a <ref> name an object defined later
+        // in the file or in a later include (its cbox-rgb.xml refers to the light it defines
+        // last).
+        pending_refs_.push_back(PendingRef{parent, object(parent).children.size(), id});
+        object(parent).children.push_back(ChildRef{std::move(name), -1, loc});
+    }
+
+    /// Points every <ref> at its object, then refuses a cycle of references (an object that
+    /// contains itself), which forward references make possible, at the <ref> that closes it.
+    void resolve_refs() {
+        for (const PendingRef& ref : pending_refs_) {
+            ChildRef& child = object(ref.object).children.at(ref.child);
+            child.object = lookup_id(ref.id, child.loc);
+        }
+        // Iterative depth-first search (a chain of references may be long): 0 unvisited,
+        // 1 on the current path, 2 done.
+        std::vector<char> state(scene_.objects.size(), 0);
+        std::vector<std::pair<int, std::size_t>> stack;  // object, next child to visit
+        for (int start = 0; start < static_cast<int>(scene_.objects.size()); ++start) {
+            if (state[static_cast<std::size_t>(start)] != 0) continue;
+            state[static_cast<std::size_t>(start)] = 1;
+            stack.emplace_back(start, 0);
+            while (!stack.empty()) {
+                auto& [current, next] = stack.back();
+                const std::vector<ChildRef>& children = object(current).children;
+                if (next == children.size()) {
+                    state[static_cast<std::size_t>(current)] = 2;
+                    stack.pop_back();
+                    continue;
+                }
+                const ChildRef& child = children[next++];
+                char& child_state = state[static_cast<std::size_t>(child.object)];
+                if (child_state == 1)
+                    throw InputError(child.loc, "this reference makes " +
+                                                    describe_object(child.object) +
+                                                    " contain itself");
+                if (child_state == 0) {
+                    child_state = 1;
+                    stack.emplace_back(child.object, 0);
+                }
+            }
+        }
+    }
+
+    std::string describe_object(int index) {
+        const ObjectDesc& o = object(index);
+        return "<" + o.tag + " type=" + in_quotes(o.type) +
+               (o.id.empty() ? "" : " id=" + in_quotes(o.id)) + ">";
     }
 
     void parse_include(const pugi::xml_node& element, const FileContext& context,
@@ -591,11 +636,10 @@ class SceneParser {
         return resolve_path(filename, directory);
     }
 
-    /// A relative file name: the first of the <path> directories (the latest first) and the
-    /// directory of the file it is written in (`directory`) where it exists, else the latter's
-    /// (whose absence the reader reports). Mitsuba 3 looks in the <path>s, the scene's directory
-    /// and the working directory, and not in an included file's own directory; looking there
-    /// too keeps included files that live elsewhere finding their meshes and textures.
+    /// A relative file name, looked for as Mitsuba 3 looks for it: in the <path> directories
+    /// (the latest first), then in the scene file's directory; then, beyond Mitsuba, beside the
+    /// included file that names it, so that an include living elsewhere finds its meshes and
+    /// textures. Found nowhere: the last (whose absence the reader reports).
     fs::path resolve_path(const std::string& filename, const fs::path& directory) const {
         const fs::path path(filename);
         if (path.is_absolute()) return path;
@@ -603,6 +647,12 @@ class SceneParser {
         std::error_code error;
         for (const fs::path& base : search_paths_) {
             fs::path candidate = (base / path).lexically_normal();
+            if (fs::exists(candidate, error)) return candidate;
+        }
+        const fs::path scene_directory = fs::path(scene_.scene_file).parent_path();
+        if (scene_directory != directory) {
+            // (An empty directory: the scene file is in the working directory.)
+            fs::path candidate = (scene_directory / path).lexically_normal();
             if (fs::exists(candidate, error)) return candidate;
         }
         return own;
@@ -771,6 +821,13 @@ class SceneParser {
         fs::path directory;  // of the file it is written in
     };
     std::vector<PendingFilename> pending_filenames_;
+    /// A <ref>: the object holding it, its index among that object's children, the id.
+    struct PendingRef {
+        int object = -1;
+        std::size_t child = 0;
+        std::string id;
+    };
+    std::vector<PendingRef> pending_refs_;
     static constexpr int kMaxObjectNesting = 256;
     static constexpr int kMaxIncludes = 10000;
     int includes_ = 0;      // <include> elements processed so far, repeats counted

@@ -190,6 +190,21 @@ TEST(SceneBuild, AMomentIntegratorRendersItsFirstNestedIntegrator) {
     EXPECT_NE(message.find("nested"), std::string::npos) << message;
 }
 
+TEST(SceneBuild, ATopLevelAreaEmitterIsTheEmitterOfTheShapesThatReferToIt) {
+    // Mitsuba's cbox-rgb.xml declares its area light last, at the top, and the luminaire's
+    // shape refers to it: one emitter, the shape's, as Mitsuba 3 builds it.
+    const Scene scene = test::scene_from_xml(R"(<shape type="rectangle"><ref id="lamp"/></shape>
+        <shape type="sphere"/>
+        <emitter type="area" id="lamp"><rgb name="radiance" value="2, 3, 4"/></emitter>)");
+    ASSERT_EQ(scene.emitters().size(), 1u);
+    const auto* area = std::get_if<AreaEmitter>(&scene.emitters()[0]);
+    ASSERT_NE(area, nullptr);
+    EXPECT_EQ(area->shape, 0);
+    // Referred to by nothing, it is still an error (Mitsuba 3 drops it without a word).
+    const std::string message = build_error("\n<emitter type=\"area\" id=\"lost\"/>" + kLight);
+    EXPECT_NE(message.find("test.xml:3"), std::string::npos) << message;
+}
+
 TEST(SceneBuild, RectangleFacesAlongItsTransformedNormal) {
     // Mitsuba's rectangle spans [-1,1]^2 at z = 0 facing +z; rotating by -90 degrees about x
     // turns it into a floor at y = -1 facing +y.

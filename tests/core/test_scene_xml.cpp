@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <ostream>
 #include <string>
 
@@ -428,6 +429,30 @@ TEST(SceneXml, AnIncludeIsFoundBesideTheFilesThatIncludeItsIncluder) {
     EXPECT_EQ(child_with_tag(nearer, nearer.root_object(), "integrator").id, "nearer");
 }
 
+TEST(SceneXml, AFileNamedInAnIncludeIsLookedForInTheScenesDirectoryFirst) {
+    // Mitsuba's cbox-rgb.xml names meshes/... from fragments/shapes.xml, meaning the scene's
+    // meshes/ folder; a file only beside the include is still found there.
+    const TempDir dir;
+    dir.write("meshes/floor.obj", "not read here");
+    dir.write("fragments/meshes/floor.obj", "not read here");
+    dir.write("fragments/meshes/wall.obj", "not read here");
+    dir.write("fragments/shapes.xml", R"(<scene version="3.0.0">
+    <shape type="obj" id="floor"><string name="filename" value="meshes/floor.obj"/></shape>
+    <shape type="obj" id="wall"><string name="filename" value="meshes/wall.obj"/></shape>
+</scene>)");
+    const fs::path main = dir.write("scene.xml", R"(<scene version="3.0.0">
+    <include filename="fragments/shapes.xml"/>
+</scene>)");
+    const SceneDesc scene = parse_scene_file(main.string());
+    std::map<std::string, fs::path> files;
+    for (const ChildRef& child : scene.root_object().children) {
+        const ObjectDesc& o = scene.objects[static_cast<std::size_t>(child.object)];
+        files[o.id] = property_value<std::string>(o, "filename");
+    }
+    EXPECT_EQ(files["floor"], dir.path() / "meshes/floor.obj");
+    EXPECT_EQ(files["wall"], dir.path() / "fragments/meshes/wall.obj");
+}
+
 TEST(SceneXml, APathTagMustNameAFolderAndSitInTheScene) {
     const TempDir dir;
     const fs::path main = dir.write(
@@ -584,6 +609,49 @@ TEST(SceneXml, UnknownRefIdReportsFileAndLine) {
 </scene>)",
                                                     "ref.xml", 3);
     EXPECT_NE(message.find("whte"), std::string::npos) << message;
+}
+
+TEST(SceneXml, ARefMayNameAnObjectDefinedLaterOrInALaterInclude) {
+    // Mitsuba 3 resolves ids once the scene is read: its cbox-rgb.xml includes the shapes,
+    // which refer to the light defined after the include.
+    const TempDir dir;
+    dir.write("shapes.xml", R"(<scene version="3.0.0">
+    <shape type="sphere"><ref id="light"/><ref name="bsdf" id="white"/></shape>
+</scene>)");
+    dir.write("bsdfs.xml", R"(<scene version="3.0.0"><bsdf type="diffuse" id="white"/></scene>)");
+    const fs::path main = dir.write("main.xml", R"(<scene version="3.0.0">
+    <include filename="shapes.xml"/>
+    <include filename="bsdfs.xml"/>
+    <emitter type="area" id="light"/>
+</scene>)");
+    const SceneDesc scene = parse_scene_file(main.string());
+    const ObjectDesc& shape = child_with_tag(scene, scene.root_object(), "shape");
+    ASSERT_EQ(shape.children.size(), 2u);
+    const ObjectDesc& light = scene.objects[static_cast<std::size_t>(shape.children[0].object)];
+    const ObjectDesc& bsdf = scene.objects[static_cast<std::size_t>(shape.children[1].object)];
+    EXPECT_EQ(light.id, "light");
+    EXPECT_EQ(light.tag, "emitter");
+    EXPECT_EQ(bsdf.id, "white");
+    EXPECT_EQ(shape.children[1].name, "bsdf");
+    EXPECT_EQ(shape.children[0].loc, (FileLoc{(dir.path() / "shapes.xml").string(), 2, 26}));
+}
+
+TEST(SceneXml, ACycleOfRefsIsAnErrorAtTheRefThatClosesIt) {
+    // Forward references make cycles possible; followed, they would recurse without end.
+    const std::string message = input_error_message(R"(<scene version="3.0.0">
+<texture type="checkerboard" id="a"><ref name="color0" id="b"/></texture>
+<texture type="checkerboard" id="b">
+    <ref name="color0" id="a"/>
+</texture>
+</scene>)",
+                                                    "cycle.xml", 4);
+    EXPECT_NE(message.find("contain itself"), std::string::npos) << message;
+    input_error_message(R"(<scene version="3.0.0">
+<bsdf type="twosided" id="self">
+  <ref id="self"/>
+</bsdf>
+</scene>)",
+                        "self.xml", 3);
 }
 
 TEST(SceneXml, DuplicateIdReportsTheSecondDefinition) {
