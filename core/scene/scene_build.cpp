@@ -9,6 +9,7 @@
 #include "core/image/image_io.h"
 #include "core/math/transform.h"
 #include "core/scene/scene.h"
+#include "core/scene/spectrum_rgb.h"
 
 namespace gdmlt {
 namespace {
@@ -122,9 +123,11 @@ class Properties {
         if (!result.is_finite()) throw InputError(p->loc, "transform '" + name + "' is singular");
         return result;
     }
-    /// An RGB quantity: <rgb>, <srgb> (linearised), <spectrum value="v"> or <float>.
+    /// An RGB quantity: <rgb>, <srgb> (linearised), <spectrum> (as Mitsuba 3's RGB variants
+    /// take it for `use`: core/scene/spectrum_rgb.h) or <float>.
     /// `non_negative`: negative components are an error (reflectances, radiances).
-    Rgb get_rgb(const std::string& name, const Rgb& fallback, bool non_negative = true) {
+    Rgb get_rgb(const std::string& name, const Rgb& fallback, bool non_negative = true,
+                SpectrumUse use = SpectrumUse::Reflectance) {
         const Property* p = take(name);
         if (!p) return fallback;
         Rgb value;
@@ -137,7 +140,11 @@ class Properties {
         } else if (const auto* i = std::get_if<std::int64_t>(&p->value)) {
             value = Rgb::Constant(static_cast<float>(*i));
         } else if (const auto* s = std::get_if<SpectrumValue>(&p->value)) {
-            value = Rgb::Constant(parse_constant_spectrum(*p, s->text));
+            try {
+                value = spectrum_text_to_rgb(s->text, use);
+            } catch (const std::invalid_argument& e) {
+                throw InputError(p->loc, e.what());
+            }
         } else {
             throw mismatch(*p, "rgb, spectrum or float");
         }
@@ -173,19 +180,6 @@ class Properties {
         return InputError(p.loc, "property '" + p.name + "' of " + describe(obj_) + " should be " +
                                      expected + ", found " + value_kind(p.value));
     }
-    static float parse_constant_spectrum(const Property& p, const std::string& text) {
-        std::size_t consumed = 0;
-        float v = 0.f;
-        try {
-            v = std::stof(text, &consumed);
-        } catch (const std::exception&) {
-            consumed = 0;
-        }
-        if (consumed == 0 || text.find_first_not_of(" \t", consumed) != std::string::npos)
-            throw InputError(p.loc, "only constant spectra are supported (got \"" + text + "\")");
-        return v;
-    }
-
     const ObjectDesc& obj_;
     const Diagnostics& diagnostics_;
     std::set<std::string> used_;
@@ -278,14 +272,15 @@ struct Builder {
         TextureParams(Builder& builder, const ObjectDesc& obj, Properties& props)
             : builder_(builder), obj_(obj), props_(props) {}
 
-        RgbTexture rgb(const std::string& name, const Rgb& fallback) {
+        RgbTexture rgb(const std::string& name, const Rgb& fallback,
+                       SpectrumUse use = SpectrumUse::Reflectance) {
             if (const ChildRef* child = find(name)) {
                 if (props_.has(name))
                     throw InputError(child->loc,
                                      "'" + name + "' given both as a property and as a texture");
                 return builder_.build_texture(builder_.object(child->object));
             }
-            return RgbTexture(props_.get_rgb(name, fallback));
+            return RgbTexture(props_.get_rgb(name, fallback, true, use));
         }
         FloatTexture scalar(const std::string& name, float fallback) {
             if (const ChildRef* child = find(name)) {
@@ -608,8 +603,8 @@ struct Builder {
         const std::string material = props.get_string("material", "none");
         *perfect_mirror = true;
         if (props.has("eta") || props.has("k")) {
-            *eta = props.get_rgb("eta", Rgb::Zero());
-            *k = props.get_rgb("k", Rgb::Ones());
+            *eta = props.get_rgb("eta", Rgb::Zero(), true, SpectrumUse::Unbounded);
+            *k = props.get_rgb("k", Rgb::Ones(), true, SpectrumUse::Unbounded);
             *perfect_mirror = false;
         } else if (material != "none") {
             const auto ior = lookup_conductor(material);
@@ -893,7 +888,8 @@ struct Builder {
         if (obj.type == "area") {
             if (shape_index < 0)
                 throw InputError(obj.loc, "an area emitter must be nested in a <shape>");
-            emitters.emplace_back(AreaEmitter{textures.rgb("radiance", Rgb::Ones()), shape_index});
+            emitters.emplace_back(AreaEmitter{
+                textures.rgb("radiance", Rgb::Ones(), SpectrumUse::Emission), shape_index});
             features.has_area_emitters = true;
         } else if (obj.type == "point") {
             PointEmitter p;
@@ -902,7 +898,7 @@ struct Builder {
             check_world_point(to_world.apply_point(position), props.loc_of("position"),
                               "the point light");
             p.position = to_world.apply_point(position).cast<float>();
-            p.intensity = props.get_rgb("intensity", Rgb::Ones());
+            p.intensity = props.get_rgb("intensity", Rgb::Ones(), true, SpectrumUse::Emission);
             emitters.emplace_back(p);
             features.has_delta_emitters = true;
         } else if (obj.type == "spot") {
@@ -919,8 +915,10 @@ struct Builder {
             check_world_point(to_world.apply_point(Vec3d(Vec3d::Zero())), props.loc_of("to_world"),
                               "the spot light");
             const Vec3f position = to_world.apply_point(Vec3d(Vec3d::Zero())).cast<float>();
-            emitters.emplace_back(make_spot(position, rotation,
-                                            props.get_rgb("intensity", Rgb::Ones()), cutoff, beam));
+            emitters.emplace_back(
+                make_spot(position, rotation,
+                          props.get_rgb("intensity", Rgb::Ones(), true, SpectrumUse::Emission),
+                          cutoff, beam));
             features.has_delta_emitters = true;
         } else if (obj.type == "directional") {
             DirectionalEmitter d;
@@ -932,11 +930,12 @@ struct Builder {
                 direction = props.get_transform("to_world").apply_vector(Vec3d(0.0, 0.0, 1.0));
             if (!(direction.norm() > 0.0)) throw InputError(obj.loc, "directional: zero direction");
             d.direction = direction.normalized().cast<float>();
-            d.irradiance = props.get_rgb("irradiance", Rgb::Ones());
+            d.irradiance = props.get_rgb("irradiance", Rgb::Ones(), true, SpectrumUse::Emission);
             emitters.emplace_back(d);
             features.has_delta_emitters = true;
         } else if (obj.type == "constant") {
-            emitters.emplace_back(ConstantEmitter{props.get_rgb("radiance", Rgb::Ones())});
+            emitters.emplace_back(ConstantEmitter{
+                props.get_rgb("radiance", Rgb::Ones(), true, SpectrumUse::Emission)});
             features.has_infinite_emitters = true;
         } else if (obj.type == "envmap") {
             const std::string filename = props.get_string("filename", "");

@@ -12,6 +12,7 @@
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
 #include "core/scene/scene.h"
+#include "core/scene/spectrum_rgb.h"
 #include "tests/support/scene_fixtures.h"
 
 namespace gdmlt {
@@ -167,7 +168,7 @@ TEST(SceneBuild, APinholeCameraTakesAFocusDistanceWithoutEffect) {
     const Scene plain = test::scene_from_xml(camera + "</sensor>" + kLight);
     const Scene focused = test::scene_from_xml(
         camera + R"(<float name="focus_distance" value="2.5"/></sensor>)" + kLight);
-    for (const Vec2f film_position : {Vec2f(0.5f, 0.5f), Vec2f(10.25f, 3.75f)}) {
+    for (const Vec2f& film_position : {Vec2f(0.5f, 0.5f), Vec2f(10.25f, 3.75f)}) {
         const Ray a = plain.camera().generate_ray(film_position);
         const Ray b = focused.camera().generate_ray(film_position);
         EXPECT_EQ(a.origin, b.origin);
@@ -203,6 +204,30 @@ TEST(SceneBuild, ATopLevelAreaEmitterIsTheEmitterOfTheShapesThatReferToIt) {
     // Referred to by nothing, it is still an error (Mitsuba 3 drops it without a word).
     const std::string message = build_error("\n<emitter type=\"area\" id=\"lost\"/>" + kLight);
     EXPECT_NE(message.find("test.xml:3"), std::string::npos) << message;
+}
+
+TEST(SceneBuild, SpectraOnEmittersAreEmissionSpectra) {
+    // As in Mitsuba 3's RGB variants: a uniform spectrum on an emitter is the equal-energy
+    // white in sRGB (not grey), and wavelength:value pairs on an emitter are not weighted by
+    // D65 nor clamped to 1 (core/scene/spectrum_rgb.h; the values are tested there).
+    const Scene scene = test::scene_from_xml(R"(
+        <emitter type="point"><spectrum name="intensity" value="2"/></emitter>
+        <emitter type="constant"><spectrum name="radiance" value="400:0, 500:8, 600:15.6, 700:18.4"/></emitter>)");
+    ASSERT_EQ(scene.emitters().size(), 2u);
+    const auto& point = std::get<PointEmitter>(scene.emitters()[0]);
+    const Rgb white = spectrum_text_to_rgb("2", SpectrumUse::Emission);
+    EXPECT_GT(white[0], 2.3f);  // purple: more red and blue than green
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(point.intensity[c], white[c]);
+    const auto& constant = std::get<ConstantEmitter>(scene.emitters()[1]);
+    const Rgb light =
+        spectrum_text_to_rgb("400:0, 500:8, 600:15.6, 700:18.4", SpectrumUse::Emission);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(constant.radiance[c], light[c]);
+    // A malformed spectrum is an error at its line.
+    const std::string message = build_error(
+        "\n<emitter type=\"point\"><spectrum name=\"intensity\" value=\"500:1, "
+        "400:2\"/></emitter>");
+    EXPECT_NE(message.find("test.xml:3"), std::string::npos) << message;
+    EXPECT_NE(message.find("increase"), std::string::npos) << message;
 }
 
 TEST(SceneBuild, RectangleFacesAlongItsTransformedNormal) {
