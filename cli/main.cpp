@@ -647,7 +647,7 @@ int run_render(const RenderOptions& options) {
     g_interrupted.store(false);
     g_stop_signal.store(0);
     for (const int signal : kStopSignals) std::signal(signal, on_stop_signal);
-    const Scene scene = load_scene(options.scene_path, options.defines, options.lenient);
+    Scene scene = load_scene(options.scene_path, options.defines, options.lenient);
 
     // Effective configuration: defaults < scene file < command line.
     const std::string integrator =
@@ -661,6 +661,10 @@ int run_render(const RenderOptions& options) {
     if (options.max_depth && (*options.max_depth == 0 || *options.max_depth < -1))
         throw InputError("--max-depth must be -1 or at least 1");
     const bool gradient_domain = integrator == "gdpt" || integrator == "gdmlt";
+    // The film's filter (core/camera/pixel_filter.h): sampled and splatted by the others, applied
+    // to the reconstructed image by the gradient-domain integrators.
+    const PixelFilter film_filter = scene.camera().film().filter;
+    if (gradient_domain) scene.set_film_filter(PixelFilter());
     const std::string neighbours = options.neighbours.empty() ? "lattice" : options.neighbours;
     if (neighbours != "lattice" && neighbours != "adap")
         throw InputError("--neighbours must be lattice or adap");
@@ -773,9 +777,16 @@ int run_render(const RenderOptions& options) {
             ExrLayer{"normal_variance", {"Y"}, features->normal_variance});
         result.extra_layers.push_back(ExrLayer{"depth_variance", {"Y"}, features->depth_variance});
     }
+    if (gradient_domain) result.image = filter_image(result.image, film_filter);
     bar.finish(result.partial);
 
     json config = result.config;
+    config["film_filter"] = {
+        {"name", film_filter.name()},
+        {"radius", film_filter.radius()},
+        {"applied", film_filter.is_box() ? "pixel"
+                    : gradient_domain    ? "image convolution after the reconstruction"
+                                         : "sampled and splatted"}};
     config["scene"] = options.scene_path;
     config["threads"] = threads;
     config["defines"] = options.defines;

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "cli/validators.h"
+#include "core/camera/pixel_filter.h"
 #include "core/image/gradient_buffers.h"
 #include "core/image/gradient_layers.h"
 #include "core/image/image_io.h"
@@ -62,6 +63,27 @@ void defaults_from_header(const ExrAttributes& attributes, ReconstructOptions& o
         o.coarse_radius = j["coarse_radius"].get<int>();
     if (!o.huber && j.contains("huber") && j["huber"].is_number())
         o.huber = j["huber"].get<double>();
+}
+
+/// The film filter a gradient-domain render applied to its reconstructed image (its
+/// "gdmlt/config" header's film_filter), applied again here; the box filter otherwise.
+PixelFilter film_filter_from_header(const ExrAttributes& attributes) {
+    const auto config = attributes.find("gdmlt/config");
+    if (config == attributes.end()) return {};
+    const nlohmann::json j = nlohmann::json::parse(config->second, nullptr, false);
+    if (!j.is_object() || !j.contains("film_filter") || !j["film_filter"].is_object()) return {};
+    const nlohmann::json& f = j["film_filter"];
+    const std::string applied = f.value("applied", "");
+    if (applied.rfind("image convolution", 0) != 0) return {};
+    const std::string name = f.value("name", "box");
+    const double radius = f.value("radius", 0.0);
+    try {
+        if (name == "gaussian") return PixelFilter::gaussian(static_cast<float>(radius / 4.0));
+        if (name == "tent") return PixelFilter::tent(static_cast<float>(radius));
+    } catch (const std::invalid_argument& e) {
+        throw InputError(std::string("film_filter in the header: ") + e.what());
+    }
+    return {};
 }
 
 int run_reconstruct(ReconstructOptions o) {
@@ -114,12 +136,15 @@ int run_reconstruct(ReconstructOptions o) {
     } catch (const std::invalid_argument& e) {
         throw InputError(o.input + ": " + e.what());
     }
+    const PixelFilter film_filter = film_filter_from_header(attributes);
+    result.image = filter_image(result.image, film_filter);
     const reconstruct::ReconstructStats& s = result.stats;
 
     attributes["gdmlt.reconstruct.method"] = o.method;
     attributes["gdmlt.reconstruct.alpha"] = std::to_string(*o.alpha);
     attributes["gdmlt.reconstruct.coarse_radius"] = std::to_string(config.coarse_radius);
     attributes["gdmlt.reconstruct.huber"] = std::to_string(config.huber_k);
+    attributes["gdmlt.reconstruct.film_filter"] = film_filter.name();
     attributes["gdmlt.reconstruct.iterations"] = std::to_string(s.iterations);
     attributes["gdmlt.reconstruct.cg_iterations"] = std::to_string(s.cg_iterations);
     attributes["gdmlt.reconstruct.relative_residual"] = std::to_string(s.final_relative_residual);

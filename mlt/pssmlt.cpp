@@ -38,7 +38,11 @@ class PathTracerTarget final : public ChainTarget {
         }
         if (!(lum > 0.0)) return;
         state.target = lum;
-        state.splats.push_back({static_cast<std::uint32_t>(where.pixel), radiance});
+        // Every pixel whose filter reaches the position (the one pixel with the box filter).
+        for_each_filtered_pixel(scene_.camera().film(), where.film_position,
+                                [&](std::uint32_t pixel, float weight) {
+                                    state.splats.push_back({pixel, radiance * weight});
+                                });
     }
 
   private:
@@ -104,11 +108,16 @@ class BidirectionalTarget final : public ChainTarget {
         }
         double target = static_cast<double>(luminance(sample.pixel));
         if (!is_black(sample.pixel))
-            state.splats.push_back({static_cast<std::uint32_t>(where.pixel), sample.pixel});
+            for_each_filtered_pixel(film, where.film_position,
+                                    [&](std::uint32_t pixel, float weight) {
+                                        state.splats.push_back({pixel, sample.pixel * weight});
+                                    });
         for (const BdptSample::Splat& s : sample.splats) {
             const Rgb value = s.value * (inverse_choice / pixels_);
             target += static_cast<double>(luminance(value));
-            state.splats.push_back({crop_pixel_index(film, s.film_position), value});
+            for_each_filtered_pixel(film, s.film_position, [&](std::uint32_t pixel, float weight) {
+                state.splats.push_back({pixel, value * weight});
+            });
         }
         if (!std::isfinite(target)) {
             state.nonfinite = true;

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <span>
 
+#include "core/camera/pixel_filter.h"
 #include "core/geometry/ray.h"
 #include "core/math/simd.h"
 #include "core/math/transform.h"
@@ -21,6 +22,7 @@ struct Film {
     int crop_offset_y = 0;
     int crop_width = 768;
     int crop_height = 576;
+    PixelFilter filter;  // box unless the scene says otherwise (core/camera/pixel_filter.h)
 };
 
 /// Row-major index in the crop window of the pixel containing `film_position` (full-film
@@ -31,6 +33,41 @@ inline std::uint32_t crop_pixel_index(const Film& film, const Vec2f& film_positi
     const int y = std::clamp(static_cast<int>(std::floor(film_position.y())) - film.crop_offset_y,
                              0, film.crop_height - 1);
     return static_cast<std::uint32_t>(y * film.crop_width + x);
+}
+
+/// Calls `add(pixel, weight)` for every crop-window pixel p whose filter reaches
+/// `film_position`, with weight h_p(film_position) (core/camera/pixel_filter.h): how a value
+/// found at that position (a light path's, a Markov chain's) is spread over the pixels. With
+/// the box filter, the one pixel crop_pixel_index gives, weight 1.
+template <typename Add>
+void for_each_filtered_pixel(const Film& film, const Vec2f& film_position, Add&& add) {
+    const PixelFilter& f = film.filter;
+    if (f.is_box()) {
+        add(crop_pixel_index(film, film_position), 1.f);
+        return;
+    }
+    // Pixel centres within the radius, in crop coordinates.
+    const float px = film_position.x() - static_cast<float>(film.crop_offset_x);
+    const float py = film_position.y() - static_cast<float>(film.crop_offset_y);
+    const float r = f.radius();
+    const int x0 = std::max(static_cast<int>(std::ceil(px - 0.5f - r)), 0);
+    const int x1 = std::min(static_cast<int>(std::floor(px - 0.5f + r)), film.crop_width - 1);
+    const int y0 = std::max(static_cast<int>(std::ceil(py - 0.5f - r)), 0);
+    const int y1 = std::min(static_cast<int>(std::floor(py - 0.5f + r)), film.crop_height - 1);
+    for (int y = y0; y <= y1; ++y) {
+        const float cy = static_cast<float>(y) + 0.5f;
+        const float wy = f.eval(py - cy);
+        if (!(wy > 0.f)) continue;
+        const double norm_y = f.integral(-cy, static_cast<float>(film.crop_height) - cy);
+        for (int x = x0; x <= x1; ++x) {
+            const float cx = static_cast<float>(x) + 0.5f;
+            const float wx = f.eval(px - cx);
+            if (!(wx > 0.f)) continue;
+            const double norm = norm_y * f.integral(-cx, static_cast<float>(film.crop_width) - cx);
+            add(static_cast<std::uint32_t>(y * film.crop_width + x),
+                static_cast<float>(static_cast<double>(wx) * wy / norm));
+        }
+    }
 }
 
 /// A world point as the camera sees it: where on the film it lands and the importance there
@@ -72,6 +109,8 @@ class PerspectiveCamera {
     float pdf_direction_solid_angle(const Vec3f& w) const;
 
     const Film& film() const { return film_; }
+    /// Changes only how samples are weighed into pixels, not the rays.
+    void set_film_filter(const PixelFilter& filter) { film_.filter = filter; }
     const Transform& world_from_camera() const { return world_from_camera_; }
     Vec3f position() const { return position_; }
     float tan_half_fov_x() const { return tan_half_fov_x_; }

@@ -66,11 +66,19 @@ inline std::uint64_t pixel_stream_id(const Film& film, int x, int y) {
     return static_cast<std::uint64_t>(y + film.crop_offset_y) * film.width +
            static_cast<std::uint64_t>(x + film.crop_offset_x);
 }
-/// Full-film position of crop-window pixel (x, y)'s corner plus `jitter` (in [0, 1)²).
+/// Full-film position of a sample of crop-window pixel (x, y) from `jitter` in [0, 1)^2: with
+/// the box filter the pixel's corner plus the jitter; with another filter, drawn from the
+/// pixel's filter h_p (core/camera/pixel_filter.h), each axis by inverting its distribution.
 inline Vec2f jittered_film_position(const Film& film, int x, int y, float jitter_x,
                                     float jitter_y) {
-    return {static_cast<float>(x + film.crop_offset_x) + jitter_x,
-            static_cast<float>(y + film.crop_offset_y) + jitter_y};
+    if (film.filter.is_box())
+        return {static_cast<float>(x + film.crop_offset_x) + jitter_x,
+                static_cast<float>(y + film.crop_offset_y) + jitter_y};
+    const float cx = static_cast<float>(x) + 0.5f, cy = static_cast<float>(y) + 0.5f;
+    const float dx = film.filter.sample(jitter_x, -cx, static_cast<float>(film.crop_width) - cx);
+    const float dy = film.filter.sample(jitter_y, -cy, static_cast<float>(film.crop_height) - cy);
+    return {static_cast<float>(film.crop_offset_x) + cx + dx,
+            static_cast<float>(film.crop_offset_y) + cy + dy};
 }
 inline PixelSample pixel_sample(const Film& film, std::uint64_t seed, int x, int y, int index) {
     PixelSample s{IndependentStream(derive_stream(seed, pixel_stream_id(film, x, y),

@@ -62,7 +62,10 @@ RenderOutput render_bdpt(const Scene& scene, const BdptRenderSettings& settings,
             std::vector<TileSplat>& list = tile_splats[static_cast<std::size_t>(
                 (y / kPixelPassTileSize) * tiles_x + x / kPixelPassTileSize)];
             for (const BdptSample::Splat& s : sample.splats)
-                list.push_back({crop_pixel_index(film, s.film_position), s.value});
+                for_each_filtered_pixel(film, s.film_position,
+                                        [&](std::uint32_t pixel, float weight) {
+                                            list.push_back({pixel, s.value * weight});
+                                        });
         },
         [&](int spp_completed) {
             merge_splats();

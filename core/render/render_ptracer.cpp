@@ -10,6 +10,7 @@
 
 #include "core/math/stopwatch.h"
 #include "core/path/bidirectional.h"
+#include "core/render/pixel_passes.h"
 #include "core/sampling/rng.h"
 #include "core/sampling/sample_stream.h"
 
@@ -75,8 +76,10 @@ class LightTracer {
             if (is_black(c.contribution)) continue;
             const Rgb value = weights_.bdpt_mis ? Rgb(c.contribution * c.weight) : c.contribution;
             if (is_black(value)) continue;
-            out.splats.push_back(
-                {crop_pixel_index(scene_.camera().film(), c.film_position), value});
+            for_each_filtered_pixel(scene_.camera().film(), c.film_position,
+                                    [&](std::uint32_t pixel, float weight) {
+                                        out.splats.push_back({pixel, value * weight});
+                                    });
         }
     }
 
@@ -164,8 +167,9 @@ RenderOutput render_ptracer(const Scene& scene, const RenderSettings& settings,
                     IndependentStream stream(derive_stream(settings.seed ^ kEnvironmentStream,
                                                            pixel, static_cast<std::uint64_t>(s)));
                     const Vec2f jitter = stream.next_2d();
-                    const Ray ray = scene.camera().generate_ray(Vec2f(
-                        static_cast<float>(x) + jitter.x(), static_cast<float>(y) + jitter.y()));
+                    const Ray ray = scene.camera().generate_ray(
+                        jittered_film_position(film, x - film.crop_offset_x, y - film.crop_offset_y,
+                                               jitter.x(), jitter.y()));
                     if (!scene.intersect(ray).valid())
                         environment_sums[pixel] += scene.environment(ray.direction).cast<double>();
                 }

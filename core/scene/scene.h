@@ -116,6 +116,9 @@ class Scene {
     const std::vector<Bsdf>& bsdfs() const { return bsdfs_; }
     const std::vector<Emitter>& emitters() const { return emitters_; }
     const PerspectiveCamera& camera() const { return camera_; }
+    /// Renders with another reconstruction filter than the file's: the gradient-domain
+    /// integrators sample with the box filter and filter their reconstructed image afterwards.
+    void set_film_filter(const PixelFilter& filter) { camera_.set_film_filter(filter); }
     const IntegratorSettings& integrator() const { return integrator_; }
     const SamplerSettings& sampler() const { return sampler_; }
     const SceneFeatures& features() const { return features_; }

@@ -426,6 +426,7 @@ struct Builder {
             Film film;
             film.crop_width = film.width;
             film.crop_height = film.height;
+            film.filter = PixelFilter::gaussian(0.5f);  // Mitsuba's default film's filter
             camera = PerspectiveCamera(Transform(), film, 45.f, "x", 0.01f);
         }
     }
@@ -502,9 +503,10 @@ struct Builder {
                              "fov_axis must be x, y, diagonal, smaller or larger");
         props.check_all_used();
 
-        Film film;
+        Film film;  // Mitsuba's default film: 768 x 576, Gaussian filter
         film.crop_width = film.width;
         film.crop_height = film.height;
+        film.filter = PixelFilter::gaussian(0.5f);
         bool has_film = false;
         for (const ChildRef& child : obj.children) {
             const ObjectDesc& c = object(child.object);
@@ -520,6 +522,29 @@ struct Builder {
         (void)has_film;
         camera = PerspectiveCamera(world_from_camera, film, fov, fov_axis, near_clip);
         has_camera = true;
+    }
+
+    PixelFilter build_filter(const ObjectDesc& obj) {
+        Properties props(obj, diagnostics);
+        PixelFilter filter;
+        if (obj.type == "box") {
+            // Mitsuba's box has no parameters (radius 1/2).
+        } else if (obj.type == "tent") {
+            const double radius = props.get_float("radius", 1.0);
+            if (!(radius > 0.0 && radius <= 16.0))
+                throw InputError(props.loc_of("radius"), "the tent's radius must be in (0, 16]");
+            filter = PixelFilter::tent(static_cast<float>(radius));
+        } else if (obj.type == "gaussian") {
+            const double stddev = props.get_float("stddev", 0.5);
+            if (!(stddev > 0.0 && stddev <= 4.0))
+                throw InputError(props.loc_of("stddev"), "the gaussian's stddev must be in (0, 4]");
+            filter = PixelFilter::gaussian(static_cast<float>(stddev));
+        } else {
+            diagnostics.unknown(obj.loc, "unsupported reconstruction filter '" + obj.type +
+                                             "' (supported: box, tent, gaussian)");
+        }
+        props.check_all_used();
+        return filter;
     }
 
     Film build_film(const ObjectDesc& obj) {
@@ -554,18 +579,15 @@ struct Builder {
         for (const ChildRef& child : obj.children) {
             const ObjectDesc& c = object(child.object);
             if (c.tag == "rfilter") {
+                if (has_filter) throw InputError(c.loc, "a film takes one <rfilter>");
                 has_filter = true;
-                if (c.type != "box")
-                    diagnostics.unknown(c.loc, "unsupported reconstruction filter '" + c.type +
-                                                   "' (supported: box)");
-                Properties(c, diagnostics).check_all_used();
+                film.filter = build_filter(c);
             } else {
                 diagnostics.unknown(c.loc, "unsupported element " + describe(c) + " in <film>");
             }
         }
-        if (!has_filter)
-            diagnostics.warn(obj.loc,
-                             "no <rfilter> given: Mitsuba would use a Gaussian, gdmlt uses box");
+        // Mitsuba 3's default: a Gaussian of standard deviation 0.5 pixels.
+        if (!has_filter) film.filter = PixelFilter::gaussian(0.5f);
         return film;
     }
 
