@@ -3,6 +3,7 @@
 // (pbrt-v4's ReportUnused, Mitsuba's unqueried-property error), mesh loading, transforms.
 #include <filesystem>
 #include <iostream>
+#include <numbers>
 #include <set>
 
 #include "core/geometry/mesh_io.h"
@@ -452,6 +453,23 @@ struct Builder {
             build_integrator(*nested);
             return;
         }
+        if (obj.type == "direct") {
+            // Mitsuba 3's `direct`: the light seen directly and direct illumination at the first
+            // hit, by MIS of emitter and BSDF samples: the path tracer's expectation with
+            // max_depth 2. Its emitter_samples / bsdf_samples (shading_samples sets both) only
+            // change how many samples of each technique a camera ray takes, i.e. the noise.
+            Properties props(obj, diagnostics);
+            for (const char* name : {"emitter_samples", "bsdf_samples", "shading_samples"})
+                if (props.has(name) && props.get_int32(name, 1) < 0)
+                    throw InputError(props.loc_of(name), std::string(name) + " must be >= 0");
+            integrator.desc = obj;
+            integrator.type = "path";
+            integrator.max_depth = 2;
+            integrator.rr_depth = 5;
+            integrator.hide_emitters = props.get_bool("hide_emitters", false);
+            props.check_all_used();
+            return;
+        }
         static const std::set<std::string> known = {"path", "ptracer", "bdpt", "pssmlt",
                                                     "mmlt", "gdpt",    "gdmlt"};
         integrator.desc = obj;
@@ -482,8 +500,36 @@ struct Builder {
             throw InputError(obj.loc,
                              "unsupported sensor '" + obj.type + "' (supported: perspective)");
         Properties props(obj, diagnostics);
-        const auto fov = static_cast<float>(props.get_float("fov", 39.3077));
-        const std::string fov_axis = props.get_string("fov_axis", "x");
+        // Mitsuba 3 (parse_fov): `fov` along `fov_axis`, or else `focal_length` ("50mm" when
+        // neither is given) of a 36 x 24 mm full-frame film along its diagonal.
+        if (props.has("fov") && props.has("focal_length"))
+            throw InputError(props.loc_of("focal_length"),
+                             "give either fov or focal_length, not both");
+        float fov = 0.f;
+        std::string fov_axis = "diagonal";
+        if (props.has("fov")) {
+            fov = static_cast<float>(props.get_float("fov", 39.3077));
+            fov_axis = props.get_string("fov_axis", "x");
+        } else {
+            std::string focal = props.get_string("focal_length", "50mm");
+            const FileLoc& focal_loc = props.loc_of("focal_length");
+            if (focal.size() > 2 && focal.compare(focal.size() - 2, 2, "mm") == 0)
+                focal.resize(focal.size() - 2);
+            double millimetres = 0.0;
+            try {
+                std::size_t used = 0;
+                millimetres = std::stod(focal, &used);
+                if (used != focal.size()) millimetres = 0.0;
+            } catch (const std::exception&) {
+                millimetres = 0.0;
+            }
+            if (!(millimetres > 0.0 && std::isfinite(millimetres)))
+                throw InputError(focal_loc, "focal_length must be of the form <x>mm, x > 0");
+            fov = static_cast<float>(
+                2.0 * std::atan(std::sqrt(36.0 * 36.0 + 24.0 * 24.0) / (2.0 * millimetres)) *
+                180.0 / std::numbers::pi);
+            props.ignore("fov_axis");  // Mitsuba does not read it with a focal length
+        }
         const auto near_clip = static_cast<float>(props.get_float("near_clip", 0.01));
         props.ignore("far_clip");
         // Mitsuba 3's projective cameras all read focus_distance; only the thin lens uses it,

@@ -230,6 +230,46 @@ TEST(SceneBuild, SpectraOnEmittersAreEmissionSpectra) {
     EXPECT_NE(message.find("increase"), std::string::npos) << message;
 }
 
+TEST(SceneBuild, TheDirectIntegratorIsThePathTracerOfDepthTwo) {
+    // Mitsuba 3's `direct` (a dozen scenes of its data repository): the same expectation as
+    // its path tracer with max_depth 2; its sample counts only change the noise.
+    const Scene scene = test::scene_from_xml(R"(<integrator type="direct">
+        <integer name="emitter_samples" value="4"/><integer name="bsdf_samples" value="0"/>
+        <boolean name="hide_emitters" value="true"/></integrator>)" +
+                                             kLight);
+    EXPECT_EQ(scene.integrator().type, "path");
+    EXPECT_EQ(scene.integrator().max_depth, 2);
+    EXPECT_TRUE(scene.integrator().hide_emitters);
+    const std::string message = build_error(
+        "\n<integrator type=\"direct\"><integer name=\"max_depth\" value=\"3\"/></integrator>" +
+        kLight);
+    EXPECT_NE(message.find("test.xml:3"), std::string::npos) << message;
+    EXPECT_NE(message.find("max_depth"), std::string::npos) << message;
+}
+
+TEST(SceneBuild, WithoutAFieldOfViewTheCameraHasMitsubasFiftyMillimetreLens) {
+    // Mitsuba 3 (parse_fov): focal_length, "50mm" by default, on a 36 x 24 mm film's
+    // diagonal. At 4:3 the half-diagonal's tangent is 43.27 / 100, so tan(fov_x / 2) =
+    // 0.43267 * 4 / 5.
+    const std::string film = R"(<film type="hdrfilm"><integer name="width" value="64"/>
+        <integer name="height" value="48"/><rfilter type="box"/></film>)";
+    const Scene lens =
+        test::scene_from_xml(R"(<sensor type="perspective">)" + film + "</sensor>" + kLight);
+    const float expected = static_cast<float>(std::sqrt(36.0 * 36.0 + 24.0 * 24.0) / 100.0 * 0.8);
+    EXPECT_NEAR(lens.camera().tan_half_fov_x(), expected, 1e-6f);
+    const Scene f35 = test::scene_from_xml(
+        R"(<sensor type="perspective"><string name="focal_length" value="35mm"/>)" + film +
+        "</sensor>" + kLight);
+    EXPECT_NEAR(f35.camera().tan_half_fov_x(), expected * 50.f / 35.f, 1e-6f);
+    for (const std::string bad :
+         {R"(<string name="focal_length" value="wide"/>)",
+          R"(<string name="focal_length" value="35mm"/><float name="fov" value="40"/>)"}) {
+        const std::string message =
+            build_error("\n<sensor type=\"perspective\">" + bad + film + "</sensor>" + kLight);
+        EXPECT_NE(message.find("test.xml:3"), std::string::npos) << message;
+    }
+}
+
 TEST(SceneBuild, RectangleFacesAlongItsTransformedNormal) {
     // Mitsuba's rectangle spans [-1,1]^2 at z = 0 facing +z; rotating by -90 degrees about x
     // turns it into a floor at y = -1 facing +y.
