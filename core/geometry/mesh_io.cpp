@@ -7,12 +7,14 @@
 #include <CGAL/IO/OFF.h>
 #include <CGAL/IO/PLY.h>
 #include <CGAL/Simple_cartesian.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -371,6 +373,128 @@ bool is_degenerate(const Triangle& t, const std::vector<Vec3f>& positions) {
     return !(twice_area > kMinHeightOverEdge * longest_edge_squared);
 }
 
+/// Mitsuba's .serialized meshes, format versions 3 and 4 (Mitsuba 0.5-3; the published scenes'
+/// files): per mesh an uncompressed header (uint16 0x041C, uint16 version) and a zlib stream of
+/// a uint32 flag word (0x0001 normals, 0x0002 texture coordinates, 0x0008 colours, 0x0010 face
+/// normals, 0x2000 double precision), the name (version 4: zero-terminated), uint64 vertex and
+/// triangle counts, the vertex arrays and the triangles' indices (uint32, or uint64 beyond 2^32
+/// vertices); the file ends with each mesh's offset (uint64; version 3: uint32) and the mesh
+/// count (uint32). All little-endian.
+PolygonSoup read_serialized(std::istream& in, int shape_index, bool& face_normals) {
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const auto read_le = [](const unsigned char* p, int size) {
+        std::uint64_t v = 0;
+        for (int i = size - 1; i >= 0; --i) v = (v << 8) | p[i];
+        return v;
+    };
+    const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+    const std::size_t size = bytes.size();
+    if (size < 8) throw MeshReadError{"too short for a serialized mesh"};
+    if (read_le(data, 2) != 0x041C) throw MeshReadError{"not a serialized mesh (no 0x041C mark)"};
+    const auto version = static_cast<int>(read_le(data + 2, 2));
+    if (version != 3 && version != 4)
+        throw MeshReadError{"serialized format version " + std::to_string(version) +
+                            " is not supported (3 and 4 are)"};
+    const std::uint64_t count = read_le(data + size - 4, 4);
+    const std::size_t entry = version == 4 ? 8 : 4;
+    if (count == 0 || count > (size - 4) / entry)
+        throw MeshReadError{"its table of meshes is damaged"};
+    if (shape_index < 0 || static_cast<std::uint64_t>(shape_index) >= count)
+        throw MeshReadError{"shape_index " + std::to_string(shape_index) + " but the file holds " +
+                            std::to_string(count) + " mesh(es)"};
+    const std::size_t table = size - 4 - entry * count;
+    const std::uint64_t offset = read_le(
+        data + table + entry * static_cast<std::size_t>(shape_index), static_cast<int>(entry));
+    if (offset + 4 > table || read_le(data + offset, 2) != 0x041C ||
+        read_le(data + offset + 2, 2) != static_cast<std::uint64_t>(version))
+        throw MeshReadError{"mesh " + std::to_string(shape_index) + " has no header at its offset"};
+
+    // Inflate the mesh's stream (it ends where zlib says; the next header follows).
+    std::vector<unsigned char> raw;
+    z_stream z{};
+    if (inflateInit(&z) != Z_OK) throw MeshReadError{"zlib failed to start"};
+    z.next_in = const_cast<unsigned char*>(data + offset + 4);
+    z.avail_in = static_cast<uInt>(std::min<std::uint64_t>(table - offset - 4, 0xFFFFFFFFu));
+    int status = Z_OK;
+    while (status == Z_OK) {
+        const std::size_t done = raw.size();
+        raw.resize(done + (std::size_t{1} << 20));
+        z.next_out = raw.data() + done;
+        z.avail_out = 1u << 20;
+        status = inflate(&z, Z_NO_FLUSH);
+        raw.resize(done + (std::size_t{1} << 20) - z.avail_out);
+    }
+    inflateEnd(&z);
+    if (status != Z_STREAM_END)
+        throw MeshReadError{"its compressed data is damaged (zlib status " +
+                            std::to_string(status) + ")"};
+
+    std::size_t at = 0;
+    const auto take = [&](std::size_t bytes_wanted) {
+        if (bytes_wanted > raw.size() - at) throw MeshReadError{"its mesh data ends early"};
+        const unsigned char* p = raw.data() + at;
+        at += bytes_wanted;
+        return p;
+    };
+    const auto flags = static_cast<std::uint32_t>(read_le(take(4), 4));
+    if (version == 4)
+        while (*take(1) != 0) {
+        }
+    const std::uint64_t vertices = read_le(take(8), 8);
+    const std::uint64_t triangles = read_le(take(8), 8);
+    const bool doubles = (flags & 0x2000u) != 0;
+    const std::size_t real = doubles ? 8 : 4;
+    // Counts are checked against what is left before anything is allocated.
+    const std::size_t left = raw.size() - at;
+    if (vertices == 0 || triangles == 0 || vertices > left / (3 * real) || triangles > left / 12)
+        throw MeshReadError{"its vertex or triangle count does not fit its data"};
+    const auto read_real = [&](const unsigned char* p) {
+        if (doubles) {
+            const std::uint64_t b = read_le(p, 8);
+            double d = 0.0;
+            std::memcpy(&d, &b, 8);
+            return d;
+        }
+        const auto b = static_cast<std::uint32_t>(read_le(p, 4));
+        float f = 0.f;
+        std::memcpy(&f, &b, 4);
+        return static_cast<double>(f);
+    };
+    PolygonSoup soup;
+    const auto n = static_cast<std::size_t>(vertices);
+    soup.positions.resize(n);
+    for (Vec3d& p : soup.positions) {
+        const unsigned char* q = take(3 * real);
+        p = Vec3d(read_real(q), read_real(q + real), read_real(q + 2 * real));
+    }
+    if (flags & 0x0001u) {
+        soup.normals.resize(n);
+        for (Vec3d& v : soup.normals) {
+            const unsigned char* q = take(3 * real);
+            v = Vec3d(read_real(q), read_real(q + real), read_real(q + 2 * real));
+        }
+    }
+    if (flags & 0x0002u) {
+        soup.uvs.resize(n);
+        for (Vec2d& uv : soup.uvs) {
+            const unsigned char* q = take(2 * real);
+            uv = Vec2d(read_real(q), read_real(q + real));
+        }
+    }
+    if (flags & 0x0008u) take(n * 3 * real);  // vertex colours: not used
+    const std::size_t index_size = vertices > 0xFFFFFFFFull ? 8 : 4;
+    soup.polygons.resize(static_cast<std::size_t>(triangles));
+    for (Polygon& polygon : soup.polygons) {
+        const unsigned char* q = take(3 * index_size);
+        polygon = {
+            static_cast<std::size_t>(read_le(q, static_cast<int>(index_size))),
+            static_cast<std::size_t>(read_le(q + index_size, static_cast<int>(index_size))),
+            static_cast<std::size_t>(read_le(q + 2 * index_size, static_cast<int>(index_size)))};
+    }
+    face_normals = (flags & 0x0010u) != 0;
+    return soup;
+}
+
 std::string lowercase_extension(const std::string& path) {
     std::string extension = std::filesystem::path(path).extension().string();
     std::transform(extension.begin(), extension.end(), extension.begin(),
@@ -385,22 +509,27 @@ std::string vector_text(const Vec3d& v) {
 
 }  // namespace
 
-TriangleMeshData load_mesh(const std::string& path, const FileLoc& loc) {
+TriangleMeshData load_mesh(const std::string& path, const FileLoc& loc, int shape_index) {
     const auto fail = [&](const std::string& message) -> InputError {
         return InputError(loc, "mesh file '" + path + "': " + message);
     };
 
     const std::string extension = lowercase_extension(path);
-    if (extension != ".obj" && extension != ".ply" && extension != ".off")
-        throw fail("unsupported format '" + extension + "' (expected .obj, .ply or .off)");
+    if (extension != ".obj" && extension != ".ply" && extension != ".off" &&
+        extension != ".serialized")
+        throw fail("unsupported format '" + extension +
+                   "' (expected .obj, .ply, .off or .serialized)");
     if (const std::string problem = input_file_problem(path); !problem.empty()) throw fail(problem);
     // Binary mode: PLY (and OFF) may be binary; text readers do not mind.
     std::ifstream stream(path, std::ios::binary);
     if (!stream) throw fail("cannot open file");
 
     PolygonSoup soup;
+    bool face_normals = false;
     try {
-        if (extension == ".obj")
+        if (extension == ".serialized")
+            soup = read_serialized(stream, shape_index, face_normals);
+        else if (extension == ".obj")
             soup = read_obj(stream);
         else if (extension == ".ply")
             soup = read_ply(stream);
@@ -415,6 +544,7 @@ TriangleMeshData load_mesh(const std::string& path, const FileLoc& loc) {
         throw fail("too many vertices for 32-bit indices");
 
     TriangleMeshData mesh;
+    mesh.face_normals = face_normals;
     mesh.positions.reserve(vertex_count);
     for (std::size_t i = 0; i < vertex_count; ++i) {
         const Vec3f p = soup.positions[i].cast<float>();

@@ -887,12 +887,18 @@ struct Builder {
                 mesh = make_cube();
             } else if (obj.type == "disk") {
                 mesh = make_disk();
-            } else if (obj.type == "obj" || obj.type == "ply" || obj.type == "off") {
+            } else if (obj.type == "obj" || obj.type == "ply" || obj.type == "off" ||
+                       obj.type == "serialized") {
                 const std::string filename = props.get_string("filename", "");
                 if (filename.empty())
                     throw InputError(obj.loc, describe(obj) + " needs a 'filename'");
-                TriangleMeshData data = load_mesh(filename, props.loc_of("filename"));
-                face_normals = props.get_bool("face_normals", false);
+                // A .serialized file may hold several meshes (Mitsuba's shape_index).
+                const int shape_index =
+                    obj.type == "serialized" ? props.get_int32("shape_index", 0) : 0;
+                if (shape_index < 0)
+                    throw InputError(props.loc_of("shape_index"), "shape_index must be >= 0");
+                TriangleMeshData data = load_mesh(filename, props.loc_of("filename"), shape_index);
+                face_normals = props.get_bool("face_normals", false) || data.face_normals;
                 props.ignore("flip_tex_coords");
                 counts["degenerate_triangles_dropped"] += data.degenerate_triangles_dropped;
                 mesh.positions = std::move(data.positions);
@@ -907,7 +913,8 @@ struct Builder {
             } else {
                 diagnostics.unknown(
                     obj.loc, "unknown shape '" + obj.type +
-                                 "' (supported: obj, ply, off, rectangle, cube, disk, sphere)");
+                                 "' (supported: obj, ply, off, serialized, rectangle, cube, disk, "
+                                 "sphere)");
                 return;
             }
             mesh.flip_normals = flip_normals;

@@ -3,15 +3,19 @@
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <numbers>
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include "core/geometry/mesh_io.h"
 
@@ -78,6 +82,138 @@ std::string load_error(const std::string& path) {
     }
     ADD_FAILURE() << "no InputError for " << path;
     return {};
+}
+
+/// One mesh of a Mitsuba .serialized file (format 3 or 4) as load_mesh expects it.
+struct SerializedMesh {
+    std::vector<Vec3d> positions;
+    std::vector<Vec3d> normals;  // empty: none
+    std::vector<Vec2d> uvs;      // empty: none
+    std::vector<std::uint32_t> indices;
+    bool doubles = false;
+    bool face_normals = false;
+};
+
+template <typename T>
+void put(std::string& out, T value) {
+    char bytes[sizeof(T)];
+    std::memcpy(bytes, &value, sizeof(T));  // this machine is little-endian, as the format
+    out.append(bytes, sizeof(T));
+}
+
+/// The file's bytes: per mesh the 0x041C mark, the version and a zlib stream; then the table of
+/// offsets (uint64 in version 4, uint32 in 3) and the mesh count.
+std::string serialized_file(const std::vector<SerializedMesh>& meshes, std::uint16_t version) {
+    std::string file;
+    std::vector<std::uint64_t> offsets;
+    for (const SerializedMesh& m : meshes) {
+        offsets.push_back(file.size());
+        put<std::uint16_t>(file, 0x041C);
+        put<std::uint16_t>(file, version);
+        std::string body;
+        std::uint32_t flags = m.doubles ? 0x2000u : 0x1000u;
+        if (!m.normals.empty()) flags |= 0x0001u;
+        if (!m.uvs.empty()) flags |= 0x0002u;
+        if (m.face_normals) flags |= 0x0010u;
+        put(body, flags);
+        if (version == 4) body += std::string("mesh") + '\0';
+        put<std::uint64_t>(body, m.positions.size());
+        put<std::uint64_t>(body, m.indices.size() / 3);
+        const auto real = [&](double v) {
+            if (m.doubles)
+                put(body, v);
+            else
+                put(body, static_cast<float>(v));
+        };
+        for (const Vec3d& p : m.positions) real(p.x()), real(p.y()), real(p.z());
+        for (const Vec3d& n : m.normals) real(n.x()), real(n.y()), real(n.z());
+        for (const Vec2d& uv : m.uvs) real(uv.x()), real(uv.y());
+        for (std::uint32_t i : m.indices) put(body, i);
+        uLongf size = compressBound(static_cast<uLong>(body.size()));
+        std::string packed(size, '\0');
+        EXPECT_EQ(compress2(reinterpret_cast<Bytef*>(packed.data()), &size,
+                            reinterpret_cast<const Bytef*>(body.data()),
+                            static_cast<uLong>(body.size()), 6),
+                  Z_OK);
+        file.append(packed.data(), size);
+    }
+    for (std::uint64_t offset : offsets) {
+        if (version == 4)
+            put(file, offset);
+        else
+            put(file, static_cast<std::uint32_t>(offset));
+    }
+    put(file, static_cast<std::uint32_t>(meshes.size()));
+    return file;
+}
+
+TEST(MeshIo, LoadsTheMeshesOfMitsubasSerializedFiles) {
+    // Mitsuba's scenes (its matpreview object, 37 of the scenes in its data repository) keep
+    // their meshes in .serialized files. Two meshes per file, versions 3 and 4, single and
+    // double precision, with and without normals and uvs; shape_index picks one.
+    const TempDir dir;
+    SerializedMesh quad;
+    quad.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+    quad.normals = {{0, 0, 1}, {0, 0, 1}, {0, 0, 1}, {0, 0, 1}};
+    quad.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+    quad.indices = {0, 1, 2, 0, 2, 3};
+    SerializedMesh triangle;
+    triangle.positions = {{0, 0, 1}, {0.1, 0, 1}, {0, 0.3, 1}};
+    triangle.indices = {0, 1, 2};
+    triangle.doubles = true;
+    triangle.face_normals = true;
+    for (const std::uint16_t version : {std::uint16_t{3}, std::uint16_t{4}}) {
+        const std::string path = dir.write("two_" + std::to_string(version) + ".serialized",
+                                           serialized_file({quad, triangle}, version));
+        const TriangleMeshData first = load_mesh(path, kSceneLoc, 0);
+        ASSERT_EQ(first.positions.size(), 4u);
+        EXPECT_EQ(first.indices, quad.indices);
+        EXPECT_EQ(first.positions[2], Vec3f(1, 1, 0));
+        ASSERT_EQ(first.normals.size(), 4u);
+        EXPECT_EQ(first.normals[3], Vec3f(0, 0, 1));
+        ASSERT_EQ(first.uvs.size(), 4u);
+        EXPECT_EQ(first.uvs[1], Vec2f(1, 0));
+        EXPECT_FALSE(first.face_normals);
+        const TriangleMeshData second = load_mesh(path, kSceneLoc, 1);
+        ASSERT_EQ(second.positions.size(), 3u);
+        EXPECT_EQ(second.positions[2], Vec3f(0.f, 0.3f, 1.f));
+        EXPECT_TRUE(second.normals.empty());
+        EXPECT_TRUE(second.uvs.empty());
+        EXPECT_TRUE(second.face_normals);
+        try {
+            load_mesh(path, kSceneLoc, 2);
+            ADD_FAILURE() << "shape_index 2 of 2 meshes loaded";
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("holds 2"), std::string::npos) << e.what();
+        }
+    }
+}
+
+TEST(MeshIo, DamagedSerializedFilesAreInputErrors) {
+    const TempDir dir;
+    SerializedMesh triangle;
+    triangle.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    triangle.indices = {0, 1, 2};
+    const std::string good = serialized_file({triangle}, 4);
+    std::string wrong_mark = good;
+    wrong_mark[0] = 'x';
+    std::string version_5 = good;
+    version_5[2] = 5;
+    std::string truncated = good.substr(0, 12) + good.substr(good.size() - 12);
+    for (const auto& [name, bytes, words] :
+         std::vector<std::tuple<std::string, std::string, std::string>>{
+             {"mark", wrong_mark, "0x041C"},
+             {"version", version_5, "version 5"},
+             {"truncated", truncated, "compressed"},
+             {"empty", std::string(), "too short"}}) {
+        const std::string message = load_error(dir.write(name + ".serialized", bytes));
+        EXPECT_NE(message.find(words), std::string::npos) << name << ": " << message;
+    }
+    // A vertex index beyond the vertices.
+    triangle.indices = {0, 1, 7};
+    const std::string message =
+        load_error(dir.write("index.serialized", serialized_file({triangle}, 3)));
+    EXPECT_NE(message.find("vertex 7"), std::string::npos) << message;
 }
 
 TEST(MeshIo, LoadsObjTriangles) {
