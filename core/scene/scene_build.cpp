@@ -413,6 +413,9 @@ struct Builder {
                 build_sensor(obj);
             } else if (obj.tag == "integrator") {
                 build_integrator(obj);
+            } else if (obj.tag == "sampler" && referenced_by_any(child.object)) {
+                // Declared for the sensor that refers to it (Mitsuba's sampler_*.xml scenes);
+                // built there.
             } else if (obj.tag == "texture") {
                 // A declaration for later <ref>s; built where it is used. Validate it now so
                 // that errors in unused textures are still reported.
@@ -638,10 +641,18 @@ struct Builder {
     }
 
     void build_sampler(const ObjectDesc& obj) {
-        if (obj.type != "independent")
-            diagnostics.unknown(obj.loc,
-                                "unsupported sampler '" + obj.type + "' (supported: independent)");
+        // Mitsuba's other samplers place the same number of samples differently (strata,
+        // low-discrepancy sequences): the image they converge to is the independent sampler's,
+        // which every integrator here uses (its streams are what makes renders reproducible
+        // at any thread count and what the Markov chains mutate).
+        static const std::set<std::string> kinds = {"independent", "stratified", "multijitter",
+                                                    "orthogonal", "ldsampler"};
+        if (!kinds.count(obj.type))
+            diagnostics.unknown(obj.loc, "unsupported sampler '" + obj.type +
+                                             "' (supported: independent, and stratified, "
+                                             "multijitter, orthogonal, ldsampler as independent)");
         Properties props(obj, diagnostics);
+        for (const char* name : {"jitter", "strength", "dimension"}) props.ignore(name);
         const int spp = props.get_int32("sample_count", 4);
         const std::int64_t seed = props.get_int("seed", 0);
         if (spp < 1)
@@ -947,6 +958,13 @@ struct Builder {
             throw InputError(props.loc_of("to_world"),
                              "to_world of this emitter must be a rotation (no scale)");
         return linear.cast<float>();
+    }
+
+    bool referenced_by_any(int object_index) const {
+        for (const ObjectDesc& o : desc.objects)
+            for (const ChildRef& c : o.children)
+                if (c.object == object_index && &o != &desc.root_object()) return true;
+        return false;
     }
 
     bool referenced_by_a_shape(int object_index) const {

@@ -270,6 +270,27 @@ TEST(SceneBuild, WithoutAFieldOfViewTheCameraHasMitsubasFiftyMillimetreLens) {
     }
 }
 
+TEST(SceneBuild, MitsubasOtherSamplersAndATopLevelSamplerGiveTheirSampleCount) {
+    // Mitsuba's stratified, multijitter, orthogonal and ldsampler converge to the independent
+    // sampler's image; their sample_count is kept. A sampler declared at the top for the
+    // sensor that refers to it (Mitsuba's docs/scenes/sampler_*.xml) is the sensor's.
+    for (const std::string kind : {"independent", "stratified", "multijitter", "ldsampler"}) {
+        const Scene scene = test::scene_from_xml(
+            R"(<sensor type="perspective"><sampler type=")" + kind +
+            R"("><integer name="sample_count" value="9"/><boolean name="jitter" value="false"/></sampler></sensor>)" +
+            kLight);
+        EXPECT_EQ(scene.sampler().sample_count, 9) << kind;
+    }
+    const Scene declared = test::scene_from_xml(R"(<sampler type="independent" id="s">
+        <integer name="sample_count" value="7"/></sampler>
+        <sensor type="perspective"><ref id="s"/></sensor>)" +
+                                                kLight);
+    EXPECT_EQ(declared.sampler().sample_count, 7);
+    const std::string message =
+        build_error("\n<sensor type=\"perspective\"><sampler type=\"sobol\"/></sensor>" + kLight);
+    EXPECT_NE(message.find("test.xml:3"), std::string::npos) << message;
+}
+
 TEST(SceneBuild, RectangleFacesAlongItsTransformedNormal) {
     // Mitsuba's rectangle spans [-1,1]^2 at z = 0 facing +z; rotating by -90 degrees about x
     // turns it into a floor at y = -1 facing +y.
