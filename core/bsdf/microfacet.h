@@ -87,7 +87,12 @@ struct MicrofacetDistribution {
 };
 
 /// Inverse error function on (-1, 1), accurate to float precision (Giles 2010's polynomial
-/// approximation refined by one Newton step in double).
+/// approximation, evaluated in double).
 float erfinv(float x);
+
+/// The x slope of a visible normal of the alpha = 1 Beckmann surface seen from polar angle
+/// theta (azimuth 0), for one uniform number u: the inverse of its CDF (microfacet.cpp).
+/// MicrofacetDistribution::sample_visible's first step; public for its test.
+float sample_beckmann_visible_slope_x(float cos_theta, float sin_theta, float u);
 
 }  // namespace gdmlt

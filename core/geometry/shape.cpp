@@ -118,7 +118,7 @@ Shape::Shape(TriangleMesh mesh, int bsdf, std::string id)
     }
     area_ = static_cast<float>(total);
     pdf_area_ = area_ > 0.f ? 1.f / area_ : 0.f;
-    triangle_areas_ = Distribution1D(areas);
+    triangle_areas_ = AliasTable(areas);
 }
 
 Shape::Shape(Sphere sphere, int bsdf, std::string id)

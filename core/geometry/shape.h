@@ -7,7 +7,7 @@
 
 #include "core/geometry/interaction.h"
 #include "core/math/types.h"
-#include "core/sampling/distribution_1d.h"
+#include "core/sampling/alias_table.h"
 #include "core/sampling/warp.h"
 
 namespace gdmlt {
@@ -112,7 +112,7 @@ class Shape {
     /// triangle): computed once instead of a cross product and a square root per hit and per
     /// emitter sample. 12 bytes per triangle, half of what positions and indices take.
     std::vector<Vec3f> face_normals_;
-    Distribution1D triangle_areas_;
+    AliasTable triangle_areas_;  // a triangle by area in constant time (alias_table.h)
     int bsdf_ = -1;
     int emitter_ = -1;
     float area_ = 0.f;

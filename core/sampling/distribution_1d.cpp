@@ -37,18 +37,29 @@ std::size_t Distribution1D::search(float u, float* u_remapped) const {
     const double target = static_cast<double>(u);
     // The first bin whose upper CDF value exceeds u (what std::upper_bound over cdf_[1 ..]
     // finds); zero-weight bins are never chosen because their upper bound equals their lower
-    // bound. The guide table starts the walk at most a few bins before it: a binary search's
-    // chain of dependent loads took 8% of the path tracer's time on an image-lit scene (perf,
-    // materials_envmap: two searches per environment sample), mispredicting or, branch-free,
-    // waiting on each load. A NaN u walks to the last bin, as upper_bound's end does below.
+    // bound. The guide table bounds the answer: for u in [j / n, (j + 1) / n) it lies in
+    // [guide_[j], guide_[j + 1]], usually one or two bins, searched by halving with selects.
+    // A binary search over all bins, a chain of dependent loads, took 8% of the path tracer's
+    // time on an image-lit scene (perf, materials_envmap: two searches per environment sample);
+    // the guide with walks in both directions still mispredicted its loop exits (7.5%). A NaN
+    // u, which no comparison holds for, lands in the last bin as upper_bound's end does.
     const std::size_t n = pmf_.size();
     const double scaled = target * static_cast<double>(n);
-    std::size_t index =
-        guide_[scaled >= 0.0 ? std::min(static_cast<std::size_t>(scaled), n - 1) : 0];
-    // The guide's cell is found by a rounded product: step back should it round up.
-    while (index > 0 && target < cdf_[index]) --index;
-    while (index + 1 < n && !(target < cdf_[index + 1])) ++index;
-    return finish_search(index, target, u_remapped);
+    std::size_t cell = scaled >= 0.0 ? std::min(static_cast<std::size_t>(scaled), n - 1) : 0;
+    if (std::isnan(target)) cell = n - 1;
+    std::size_t lo = guide_[cell];
+    const std::size_t hi = cell + 1 < n ? guide_[cell + 1] : n - 1;
+    for (std::size_t length = hi - lo + 1; length > 1;) {
+        const std::size_t half = length / 2;
+        lo = !(target < cdf_[lo + half]) ? lo + half : lo;
+        length -= half;
+    }
+    // The cell comes from a rounded product, which can disagree with the bounds j / n the guide
+    // was built on for u within an ulp of one: then the bin is a neighbour of the range (a
+    // branch that is almost never taken, unlike a division to check the cell).
+    while (lo > 0 && target < cdf_[lo]) --lo;
+    while (lo + 1 < n && !(target < cdf_[lo + 1])) ++lo;
+    return finish_search(lo, target, u_remapped);
 }
 
 std::size_t Distribution1D::linear_search(float u, float* u_remapped) const {

@@ -81,7 +81,7 @@ Scene::Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emi
                                               ? infinite_share * power[i] / infinite_power
                                               : (1.0 - infinite_share) * power[i] / finite_power);
     }
-    emitter_selection_ = Distribution1D(power);
+    emitter_selection_ = AliasTable(power);
 
     first_emitter_triangle_.assign(emitters_.size(), -1);
     for (std::size_t i = 0; i < emitters_.size(); ++i) {

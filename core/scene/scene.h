@@ -14,6 +14,7 @@
 #include "core/emitter/emitter.h"
 #include "core/geometry/interaction.h"
 #include "core/geometry/shape.h"
+#include "core/sampling/alias_table.h"
 #include "core/sampling/distribution_1d.h"
 #include "core/scene/scene_desc.h"
 
@@ -243,7 +244,7 @@ class Scene {
     /// Per emitter: for area emitters with textured radiance on a mesh, the choice of triangle
     /// by area (the uv of a sampled point is needed to look the radiance up); empty otherwise.
     std::vector<Distribution1D> textured_emitter_triangles_;
-    Distribution1D emitter_selection_;
+    AliasTable emitter_selection_;  // by power, in constant time (alias_table.h)
     /// emitter_triangle's table: every triangle of each constant-radiance area emitter on a
     /// mesh, emitter after emitter, and per emitter the index of its first triangle (-1 for
     /// the others).

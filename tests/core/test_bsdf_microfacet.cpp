@@ -725,6 +725,37 @@ TEST(MicrofacetDistribution, ErfinvIsWithinFloatPrecision) {
     }
 }
 
+TEST(MicrofacetDistribution, BeckmannVisibleSlopeInvertsItsCdf) {
+    // The sampled x slope for u must sit where the visible-slope CDF (Heitz & d'Eon 2014,
+    // Sec. 4.2: C(x) = cos (1 + erf x) / 2 + sin exp(-x^2) / (2 sqrt(pi)), normalised by its
+    // value at cot theta) reaches u. The CDF is evaluated in long double. The float slope moves F
+    // by erfinv's 2e-7 of x times the density (< 0.6), and the sampler stops within 1e-6 of F
+    // (measured worst 1.03e-6), so 2e-6 bounds what a correct sampler misses by. Polar angles
+    // from normal incidence to 0.01 degrees from grazing, u on 1001 points across (0, 1).
+    for (const double theta_deg : {0.0, 1e-3, 10.0, 45.0, 70.0, 85.0, 89.0, 89.99}) {
+        const double theta = theta_deg * std::numbers::pi / 180.0;
+        const auto cos_t = static_cast<float>(std::cos(theta)),
+                   sin_t = static_cast<float>(std::sin(theta));
+        const auto cdf = [&](long double x) {
+            return 0.5L * cos_t * (1.L + std::erf(x)) +
+                   0.5L * sin_t / std::sqrt(std::numbers::pi_v<long double>) * std::exp(-x * x);
+        };
+        const long double total = sin_t > 0.f ? cdf(static_cast<long double>(cos_t) / sin_t)
+                                              : static_cast<long double>(cos_t);
+        double worst = 0.0;
+        for (int i = 1; i <= 1001; ++i) {
+            const float u = static_cast<float>(i) / 1002.f;
+            const float x = sample_beckmann_visible_slope_x(cos_t, sin_t, u);
+            ASSERT_TRUE(std::isfinite(x)) << theta_deg << " " << u;
+            if (sin_t > 0.f) {
+                ASSERT_LE(x, cos_t / sin_t * (1.f + 1e-6f));
+            }
+            worst = std::max(worst, static_cast<double>(std::abs(cdf(x) / total - u)));
+        }
+        EXPECT_LT(worst, 2e-6) << "theta " << theta_deg;
+    }
+}
+
 TEST(MicrofacetDistribution, VisibleNormalsIntegrateToOne) {
     // int D_wo(m) dm = 1 and int D(m) cos(theta_m) dm = 1 (Walter eq. 4; Heitz 2014 eq. 16),
     // by the midpoint rule on (cos theta, phi) at 400 x 400: a check of D and Lambda together

@@ -4,6 +4,8 @@
 // scene files (nested and referenced <texture>, errors for what is not understood).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include "core/image/image_io.h"
@@ -51,6 +53,42 @@ TEST(BitmapTexture, WrapModesAndNearestFilter) {
     EXPECT_FLOAT_EQ(b.eval({-0.2f, 0.2f})[0], 0.f);
     b.wrap = WrapMode::Mirror;
     EXPECT_FLOAT_EQ(b.eval({1.1f, 0.2f})[0], 3.f);  // 1.1 mirrors to 0.9
+}
+
+TEST(BitmapTexture, BilinearLookupsMatchTheirDefinitionInEveryWrapMode) {
+    // Bilinear filtering at texel centres (i + 0.5) / n with the wrap applied to each of the
+    // four texels, written out here from the definitions, against eval() on a 61 x 61 grid of
+    // (u, v) over [-1.3, 2.3]^2: inside the image, on its last column and row, and wrapped.
+    // Float sums of four terms agree to a few ulps of the values (at most 10): 1e-5.
+    const BitmapTexture ramp = ramp_bitmap();
+    for (const WrapMode mode : {WrapMode::Repeat, WrapMode::Mirror, WrapMode::Clamp}) {
+        BitmapTexture b = ramp;
+        b.wrap = mode;
+        const auto wrap = [&](int i, int n) {
+            if (mode == WrapMode::Clamp) return std::clamp(i, 0, n - 1);
+            const int period = mode == WrapMode::Repeat ? n : 2 * n;
+            const int r = ((i % period) + period) % period;
+            return r < n ? r : 2 * n - 1 - r;
+        };
+        const auto texel = [&](int x, int y) {
+            return Rgb(static_cast<float>(wrap(x, 4)), static_cast<float>(wrap(y, 2)), 10.f);
+        };
+        for (int i = 0; i <= 60; ++i)
+            for (int j = 0; j <= 60; ++j) {
+                const float u = -1.3f + 3.6f * static_cast<float>(i) / 60.f;
+                const float v = -1.3f + 3.6f * static_cast<float>(j) / 60.f;
+                const float x = u * 4.f - 0.5f, y = v * 2.f - 0.5f;
+                const int x0 = static_cast<int>(std::floor(x)),
+                          y0 = static_cast<int>(std::floor(y));
+                const float fx = x - std::floor(x), fy = y - std::floor(y);
+                const Rgb want =
+                    (1.f - fy) * ((1.f - fx) * texel(x0, y0) + fx * texel(x0 + 1, y0)) +
+                    fy * ((1.f - fx) * texel(x0, y0 + 1) + fx * texel(x0 + 1, y0 + 1));
+                const Rgb got = b.eval({u, v});
+                for (int c = 0; c < 3; ++c)
+                    ASSERT_NEAR(got[c], want[c], 1e-5f) << "u " << u << " v " << v;
+            }
+    }
 }
 
 TEST(BitmapTexture, LinearisesEightBitFilesUnlessRaw) {
