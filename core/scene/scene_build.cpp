@@ -9,6 +9,7 @@
 #include "core/geometry/mesh_io.h"
 #include "core/image/image_io.h"
 #include "core/math/transform.h"
+#include "core/scene/plugin_scope.h"
 #include "core/scene/scene.h"
 #include "core/scene/spectrum_rgb.h"
 
@@ -59,6 +60,9 @@ class Diagnostics {
     explicit Diagnostics(bool lenient) : lenient_(lenient) {}
     void unknown(const FileLoc& loc, const std::string& message) const {
         if (!lenient_) throw InputError(loc, message);
+        // One warning per element: an out-of-scope plugin is reported before the build, and
+        // its builder then meets it as an unknown one.
+        if (!warned_.insert(loc.to_string()).second) return;
         std::cerr << loc.to_string() << ": warning: " << message << " (ignored: --lenient)\n";
     }
     void warn(const FileLoc& loc, const std::string& message) const {
@@ -68,6 +72,7 @@ class Diagnostics {
 
   private:
     bool lenient_;
+    mutable std::set<std::string> warned_;
 };
 
 /// Typed access to an object's properties that remembers which were read, so that anything
@@ -395,7 +400,16 @@ struct Builder {
         return RgbTexture(Rgb::Constant(0.5f));
     }
 
+    /// A plugin outside gdmlt's scope anywhere in the file says so before anything is built
+    /// (with --lenient: a warning, and the element is then skipped as an unknown one is).
+    void check_scope() const {
+        for (const ObjectDesc& obj : desc.objects)
+            if (const auto reason = out_of_scope_reason(obj.tag, obj.type))
+                diagnostics.unknown(obj.loc, out_of_scope_message(obj.tag, obj.type, *reason));
+    }
+
     void build_root() {
+        check_scope();
         const ObjectDesc& root = desc.root_object();
         for (const ChildRef& child : root.children) {
             const ObjectDesc& obj = object(child.object);

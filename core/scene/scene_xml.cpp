@@ -18,6 +18,7 @@
 #include <string_view>
 #include <system_error>
 
+#include "core/scene/plugin_scope.h"
 #include "core/scene/scene_desc.h"
 
 namespace gdmlt {
@@ -453,6 +454,8 @@ class SceneParser {
             throw InputError(loc, "<scene> can only be the root element");
         } else if (is_transform_operation_tag(tag)) {
             throw InputError(loc, "<" + tag + "> is only allowed inside <transform>");
+        } else if (const auto reason = out_of_scope_reason(tag, "")) {
+            throw InputError(loc, out_of_scope_message(tag, "", *reason));
         } else {
             throw InputError(loc, "unknown tag <" + tag + ">");
         }

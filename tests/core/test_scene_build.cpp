@@ -8,6 +8,9 @@
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "core/sampling/rng.h"
 #include "core/sampling/warp.h"
@@ -40,6 +43,37 @@ TEST(SceneBuild, UnknownPluginIsAnErrorWithFileAndLine) {
 
 TEST(SceneBuild, UnknownPluginIsOnlyAWarningWhenLenient) {
     EXPECT_EQ(build_error(kLight + "<shape type=\"teapot\"/>", true), "");
+}
+
+TEST(SceneBuild, PluginsOutOfScopeSaySoWithFileAndLine) {
+    // Each family the README puts out of scope, nested where Mitsuba 3 puts it: the error names
+    // the element, says "not supported" and why, and points at its line; "unknown" is kept for
+    // names that are not plugins at all.
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"<integrator type=\"volpath\"/>", "participating media"},
+        {"<medium type=\"homogeneous\" id=\"fog\"/>", "participating media"},
+        {"<shape type=\"sphere\"><bsdf type=\"principled\"/></shape>", "principled"},
+        {"<bsdf type=\"pplastic\" id=\"p\"/>", "polarisation"},
+        {"<integrator type=\"stokes\"><integrator type=\"path\"/></integrator>", "polarisation"},
+        {"<shape type=\"bsplinecurve\"/>", "curves"},
+        {"<shape type=\"sdfgrid\"/>", "SDF grids"},
+        {"<bsdf type=\"hair\" id=\"h\"/>", "hair"},
+    };
+    for (const auto& [element, reason] : cases) {
+        const std::string message = build_error("\n\n" + element + kLight);
+        EXPECT_NE(message.find("test.xml:4"), std::string::npos) << message;
+        EXPECT_NE(message.find("is not supported"), std::string::npos) << message;
+        EXPECT_NE(message.find(reason), std::string::npos) << message;
+        EXPECT_EQ(message.find("unknown"), std::string::npos) << message;
+        // --lenient: a warning, and the rest of the scene loads.
+        EXPECT_EQ(build_error(element + kLight, true), "") << element;
+    }
+    // A <volume> is not even an object tag here: the parser says the same.
+    const std::string volume = build_error("\n\n<volume type=\"gridvolume\" name=\"albedo\"/>");
+    EXPECT_NE(volume.find("test.xml:4"), std::string::npos) << volume;
+    EXPECT_NE(volume.find("participating media"), std::string::npos) << volume;
+    EXPECT_NE(build_error("<bsdf type=\"velvet\" id=\"v\"/>").find("unknown BSDF"),
+              std::string::npos);
 }
 
 TEST(SceneBuild, UnknownPropertyIsAnErrorNamingIt) {
