@@ -17,12 +17,12 @@ Vec3d unit_direction_derivative(const Vec3d& w, double length, const Vec3d& e) {
 std::optional<ConstraintFrame> constraint_frame(const SurfacePoint& point) {
     ConstraintFrame f;
     f.n = point.n_shading;
-    const Vec3d& r = point.dp_du;
+    const Vec3d& r = point.frame_reference;
     const Vec3d s_unnormalised = r - f.n * f.n.dot(r);
     const double length2 = s_unnormalised.squaredNorm();
     if (!(length2 > 1e-12 * r.squaredNorm()) || !(length2 > 0.0)) {
-        // dp_du (nearly) along the normal: a sphere pole. Frame::from_normal_and_tangent falls
-        // back to an arbitrary frame there, and so do we. Its derivative is taken as the
+        // The reference (nearly) along the normal: a sphere pole. Frame::from_normal_and_tangent
+        // falls back to an arbitrary frame there, and so do we. Its derivative is taken as the
         // parallel transport of the frame (only the part normal to the surface: n.ds = -dn.s),
         // which is exact wherever H is along n, i.e. at the solution of a delta vertex.
         const Tangents st = tangents_around(f.n);
@@ -41,7 +41,7 @@ std::optional<ConstraintFrame> constraint_frame(const SurfacePoint& point) {
     f.t = f.n.cross(f.s);
     for (int k = 0; k < 2; ++k) {
         const Vec3d& dn = point.dn_shading_dtangent[k];
-        const Vec3d& dr = point.ddp_du_dtangent[k];
+        const Vec3d& dr = point.dframe_reference_dtangent[k];
         // s~ = r - n (n.r)  =>  ds~ = dr - dn (n.r) - n (dn.r + n.dr)
         const Vec3d ds_unnormalised = dr - dn * f.n.dot(r) - f.n * (dn.dot(r) + f.n.dot(dr));
         // d(s~/|s~|) = (I - s s^T) ds~ / |s~|

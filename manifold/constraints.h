@@ -18,7 +18,8 @@
 // half-vector coordinates (generalized_geometry.h), rows are divided by H.n, which turns c_i
 // into the derivative of the half-vector slope exactly (sigma set to the current slope).
 //
-// Shading frame: s = normalize(dp_du - n (n.dp_du)), t = n x s, with n the shading normal; the
+// Shading frame: s = normalize(r - n (n.r)), t = n x s, with n the shading normal and r the
+// point's frame_reference (dp_du on a sphere, the texture's dp/du or an edge on a triangle); the
 // same frame as Frame::from_normal_and_tangent, so that half-vector slopes agree with the core.
 // The frame moves with x_i (the normal turns, dp_du changes on a sphere): those terms are part
 // of B_i (Jakob & Marschner 2012, sec. 4.2 "the tangent frame rotates").
@@ -36,7 +37,7 @@ struct ConstraintFrame {
     Tangents ds_dtangent, dt_dtangent, dn_dtangent;
 };
 
-/// Empty when the frame is degenerate (dp_du parallel to the normal: a sphere pole).
+/// Empty when the frame is degenerate (the reference parallel to the normal: a sphere pole).
 std::optional<ConstraintFrame> constraint_frame(const SurfacePoint& point);
 
 /// H = w_i + eta' w_o, unnormalised; empty for a zero-length segment.

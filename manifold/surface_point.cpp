@@ -3,6 +3,8 @@
 
 #include <cmath>
 
+#include "core/geometry/triangle_tangent.h"
+
 namespace gdmlt::manifold {
 namespace {
 
@@ -65,13 +67,20 @@ std::optional<SurfacePoint> mesh_point(const TriangleMesh& mesh, std::uint32_t t
             sp.dn_dv = sign * (dN_dv - n * n.dot(dN_dv)) / length;
         }
     }
+    if (mesh.uvs.empty()) {
+        sp.frame_reference = sp.dp_du;
+    } else {
+        const Vec2d uv0 = mesh.uvs[i0].cast<double>(), uv1 = mesh.uvs[i1].cast<double>(),
+                    uv2 = mesh.uvs[i2].cast<double>();
+        sp.frame_reference = triangle_frame_tangent(p0, p1, p2, &uv0, &uv1, &uv2);
+    }
     sp.tangents[0] = sp.dp_du.normalized();
     sp.tangents[1] = sp.n_geometric.cross(sp.tangents[0]);
     for (int k = 0; k < 2; ++k) {
         const std::optional<Vec2d> duv = param_offset(sp.dp_du, sp.dp_dv, sp.tangents[k]);
         if (!duv) return std::nullopt;
         sp.dn_shading_dtangent[k] = sp.dn_du * duv->x() + sp.dn_dv * duv->y();
-        sp.ddp_du_dtangent[k] = Vec3d::Zero();  // dp_du is constant on a triangle
+        sp.dframe_reference_dtangent[k] = Vec3d::Zero();  // constant on a triangle
     }
     return sp;
 }
@@ -99,6 +108,7 @@ SurfacePoint sphere_point(const Sphere& sphere, const Vec3d& dir) {
     sp.n_shading = sp.n_geometric;
     sp.dn_du = sign * sp.dp_du / r;
     sp.dn_dv = sign * sp.dp_dv / r;
+    sp.frame_reference = sp.dp_du;
     const Vec3d u_dir = Vec3d(-dir.y(), dir.x(), 0.0);
     if (u_dir.squaredNorm() > 1e-20) {
         sp.tangents[0] = u_dir.normalized();
@@ -109,7 +119,7 @@ SurfacePoint sphere_point(const Sphere& sphere, const Vec3d& dir) {
     for (int k = 0; k < 2; ++k) {
         const Vec3d& e = sp.tangents[k];
         sp.dn_shading_dtangent[k] = sign * e / r;  // d(dir)/de = e / r
-        sp.ddp_du_dtangent[k] = kTwoPi * Vec3d(-e.y(), e.x(), 0.0);
+        sp.dframe_reference_dtangent[k] = kTwoPi * Vec3d(-e.y(), e.x(), 0.0);
     }
     return sp;
 }

@@ -35,9 +35,13 @@ struct SurfacePoint {
     Tangents tangents{Vec3d::UnitX(), Vec3d::UnitY()};
     /// Derivatives of n_shading along tangents[0] and tangents[1] (per unit length).
     Tangents dn_shading_dtangent{Vec3d::Zero(), Vec3d::Zero()};
-    /// Derivatives of dp_du along the tangents: dp_du is the reference direction of the shading
-    /// frame (Frame::from_normal_and_tangent), so constraint blocks differentiate it too.
-    Tangents ddp_du_dtangent{Vec3d::Zero(), Vec3d::Zero()};
+    /// The reference direction of the shading frame (Frame::from_normal_and_tangent): on a
+    /// triangle its texture coordinates' dp/du, or its first edge (core/geometry/
+    /// triangle_tangent.h, as the renderer's surface interaction), on a sphere dp_du.
+    Vec3d frame_reference = Vec3d::UnitX();
+    /// Derivatives of frame_reference along the tangents, which constraint blocks
+    /// differentiate with the frame (zero on a triangle, where it is constant).
+    Tangents dframe_reference_dtangent{Vec3d::Zero(), Vec3d::Zero()};
     Vec2d surface_param = Vec2d::Zero();  // barycentrics (b1, b2), or (phi/2pi, theta/pi)
     std::int32_t shape = -1;
     std::uint32_t primitive = 0;

@@ -281,19 +281,102 @@ std::optional<float> lookup_ior(const std::string& name) {
     return it->second;
 }
 
-std::optional<ConductorIor> lookup_conductor(const std::string& name) {
-    // RGB reductions of measured spectral complex IORs (Palik), the values RGB renderers
-    // commonly use for these metals.
+namespace {
+
+const std::map<std::string, ConductorIor>& conductor_table() {
+    // Mitsuba 3's named conductors (its `material` list: measured spectral complex IORs, most
+    // from Palik's handbook), as its RGB variants reduce them to RGB (Mitsuba 3.9.1, read from
+    // the conductor plugin's eta and k after loading). Where Mitsuba clamps an out-of-gamut
+    // reduction (AlSb's eta, several k of transparent crystals), its clamped value is kept.
     static const std::map<std::string, ConductorIor> table = {
-        {"Ag", {Rgb(0.155265f, 0.116723f, 0.138342f), Rgb(4.82835f, 3.12225f, 2.14696f)}},
-        {"Al", {Rgb(1.65746f, 0.880369f, 0.521229f), Rgb(9.22387f, 6.26952f, 4.837f)}},
-        {"Au", {Rgb(0.143119f, 0.374957f, 1.44248f), Rgb(3.98316f, 2.38572f, 1.60322f)}},
-        {"Cu", {Rgb(0.200438f, 0.924033f, 1.10221f), Rgb(3.91295f, 2.45285f, 2.14219f)}},
-        {"Cr", {Rgb(4.36968f, 2.9167f, 1.6547f), Rgb(5.20643f, 4.23136f, 3.75495f)}},
+        {"a-C", {Rgb(2.94405f, 2.22714f, 1.96816f), Rgb(0.887465f, 0.799299f, 0.81529f)}},
+        {"Ag", {Rgb(0.155276f, 0.116728f, 0.138388f), Rgb(4.82835f, 3.12222f, 2.1469f)}},
+        {"Al", {Rgb(1.6575f, 0.880405f, 0.521244f), Rgb(9.22381f, 6.2695f, 4.837f)}},
+        {"AlAs", {Rgb(3.6053f, 3.23294f, 2.21632f), Rgb(0.000679437f, 0.f, 0.00751271f)}},
+        {"AlAs_palik", {Rgb(3.6053f, 3.23294f, 2.21632f), Rgb(0.000679437f, 0.f, 0.00751271f)}},
+        {"AlSb", {Rgb(0.f, 4.13937f, 4.66925f), Rgb(0.f, 0.0940091f, 1.30057f)}},
+        {"AlSb_palik", {Rgb(0.f, 4.13937f, 4.66925f), Rgb(0.f, 0.0940091f, 1.30057f)}},
+        {"Au", {Rgb(0.143036f, 0.375307f, 1.44205f), Rgb(3.983f, 2.38556f, 1.60336f)}},
+        {"Be", {Rgb(4.18501f, 3.18503f, 2.78406f), Rgb(3.83547f, 3.01012f, 2.86899f)}},
+        {"Be_palik", {Rgb(4.18501f, 3.18503f, 2.78406f), Rgb(3.83547f, 3.01012f, 2.86899f)}},
+        {"Cr", {Rgb(4.36967f, 2.91651f, 1.6549f), Rgb(5.20655f, 4.23131f, 3.7547f)}},
+        {"CsI", {Rgb(2.1449f, 1.70232f, 1.66243f), Rgb(0.f, 0.f, 0.f)}},
+        {"CsI_palik", {Rgb(2.1449f, 1.70232f, 1.66243f), Rgb(0.f, 0.f, 0.f)}},
+        {"Cu", {Rgb(0.201005f, 0.92375f, 1.10222f), Rgb(3.91326f, 2.45305f, 2.14209f)}},
+        {"Cu2O", {Rgb(3.55177f, 2.94987f, 2.75188f), Rgb(0.114207f, 0.193897f, 0.606134f)}},
+        {"Cu2O_palik", {Rgb(3.55177f, 2.94987f, 2.75188f), Rgb(0.114207f, 0.193897f, 0.606134f)}},
+        {"Cu_palik", {Rgb(0.213229f, 0.919715f, 1.10241f), Rgb(3.92187f, 2.45733f, 2.13658f)}},
+        {"CuO", {Rgb(3.24754f, 2.44781f, 2.21022f), Rgb(0.52109f, 0.570031f, 0.722179f)}},
+        {"CuO_palik", {Rgb(3.24754f, 2.44781f, 2.21022f), Rgb(0.52109f, 0.570031f, 0.722179f)}},
+        {"d-C", {Rgb(2.70872f, 2.31883f, 2.2289f), Rgb(0.f, 0.f, 0.f)}},
+        {"d-C_palik", {Rgb(2.70872f, 2.31883f, 2.2289f), Rgb(0.f, 0.f, 0.f)}},
+        {"Hg", {Rgb(2.39894f, 1.44003f, 0.90957f), Rgb(6.32759f, 4.37192f, 3.42176f)}},
+        {"Hg_palik", {Rgb(2.39894f, 1.44003f, 0.90957f), Rgb(6.32759f, 4.37192f, 3.42176f)}},
+        {"HgTe", {Rgb(4.77904f, 3.2312f, 2.6599f), Rgb(1.63161f, 1.58081f, 1.72929f)}},
+        {"HgTe_palik", {Rgb(4.77904f, 3.2312f, 2.6599f), Rgb(1.63161f, 1.58081f, 1.72929f)}},
+        {"Ir", {Rgb(3.0863f, 2.08219f, 1.61791f), Rgb(5.59215f, 4.06709f, 3.26731f)}},
+        {"Ir_palik", {Rgb(3.0863f, 2.08219f, 1.61791f), Rgb(5.59215f, 4.06709f, 3.26731f)}},
+        {"K", {Rgb(0.0640432f, 0.0464098f, 0.0381849f), Rgb(2.1042f, 1.34894f, 0.913126f)}},
+        {"K_palik", {Rgb(0.0640432f, 0.0464098f, 0.0381849f), Rgb(2.1042f, 1.34894f, 0.913126f)}},
+        {"Li", {Rgb(0.265791f, 0.195618f, 0.220949f), Rgb(3.54015f, 2.31112f, 1.66861f)}},
+        {"Li_palik", {Rgb(0.265791f, 0.195618f, 0.220949f), Rgb(3.54015f, 2.31112f, 1.66861f)}},
+        {"MgO", {Rgb(2.08958f, 1.65072f, 1.59488f), Rgb(4.3327e-12f, 0.f, 2.49865e-11f)}},
+        {"MgO_palik", {Rgb(2.08958f, 1.65072f, 1.59488f), Rgb(4.3327e-12f, 0.f, 2.49865e-11f)}},
+        {"Mo", {Rgb(4.48397f, 3.52513f, 2.77631f), Rgb(4.11144f, 3.42083f, 3.15061f)}},
+        {"Mo_palik", {Rgb(4.48397f, 3.52513f, 2.77631f), Rgb(4.11144f, 3.42083f, 3.15061f)}},
+        {"Na_palik", {Rgb(0.0602694f, 0.0561409f, 0.0619884f), Rgb(3.17927f, 2.11249f, 1.57904f)}},
+        {"Nb", {Rgb(3.42007f, 2.79009f, 2.39563f), Rgb(3.44139f, 2.73767f, 2.57975f)}},
+        {"Nb_palik", {Rgb(3.42007f, 2.79009f, 2.39563f), Rgb(3.44139f, 2.73767f, 2.57975f)}},
+        {"Ni_palik", {Rgb(2.3673f, 1.66337f, 1.46708f), Rgb(4.49881f, 3.05015f, 2.34544f)}},
+        {"Rh", {Rgb(2.58579f, 1.86022f, 1.55426f), Rgb(6.78226f, 4.70299f, 3.97607f)}},
+        {"Rh_palik", {Rgb(2.58579f, 1.86022f, 1.55426f), Rgb(6.78226f, 4.70299f, 3.97607f)}},
+        {"Se", {Rgb(4.05831f, 2.84294f, 2.82085f), Rgb(0.75405f, 0.638444f, 0.521808f)}},
+        {"Se-e", {Rgb(5.72285f, 4.16574f, 4.08134f), Rgb(0.871136f, 1.10516f, 1.56532f)}},
+        {"Se-e_palik", {Rgb(5.72285f, 4.16574f, 4.08134f), Rgb(0.871136f, 1.10516f, 1.56532f)}},
+        {"Se_palik", {Rgb(4.05831f, 2.84294f, 2.82085f), Rgb(0.75405f, 0.638444f, 0.521808f)}},
+        {"SiC", {Rgb(3.17234f, 2.52597f, 2.47937f), Rgb(7.53766e-07f, 0.f, 1.01925e-05f)}},
+        {"SiC_palik", {Rgb(3.17234f, 2.52597f, 2.47937f), Rgb(7.53766e-07f, 0.f, 1.01925e-05f)}},
+        {"SnTe", {Rgb(4.52425f, 1.98164f, 1.28159f), Rgb(0.f, 0.f, 0.f)}},
+        {"SnTe_palik", {Rgb(4.52425f, 1.98164f, 1.28159f), Rgb(0.f, 0.f, 0.f)}},
+        {"Ta", {Rgb(2.06272f, 2.39294f, 2.62793f), Rgb(2.40836f, 1.74149f, 1.94703f)}},
+        {"Ta_palik", {Rgb(2.06272f, 2.39294f, 2.62793f), Rgb(2.40836f, 1.74149f, 1.94703f)}},
+        {"Te", {Rgb(7.39023f, 4.4821f, 2.63711f), Rgb(3.25602f, 3.52706f, 3.29205f)}},
+        {"Te-e", {Rgb(7.50891f, 4.29643f, 2.36999f), Rgb(5.58393f, 4.94721f, 3.99759f)}},
+        {"Te-e_palik", {Rgb(7.50891f, 4.29643f, 2.36999f), Rgb(5.58393f, 4.94721f, 3.99759f)}},
+        {"Te_palik", {Rgb(7.39023f, 4.4821f, 2.63711f), Rgb(3.25602f, 3.52706f, 3.29205f)}},
+        {"ThF4", {Rgb(1.83071f, 1.44223f, 1.38765f), Rgb(0.f, 0.f, 0.f)}},
+        {"ThF4_palik", {Rgb(1.83071f, 1.44223f, 1.38765f), Rgb(0.f, 0.f, 0.f)}},
+        {"TiC", {Rgb(3.70053f, 2.83742f, 2.58229f), Rgb(3.26564f, 2.35159f, 2.17279f)}},
+        {"TiC_palik", {Rgb(3.70053f, 2.83742f, 2.58229f), Rgb(3.26564f, 2.35159f, 2.17279f)}},
+        {"TiN", {Rgb(1.64845f, 1.15052f, 1.37982f), Rgb(3.36833f, 1.9435f, 1.10207f)}},
+        {"TiN_palik", {Rgb(1.64845f, 1.15052f, 1.37982f), Rgb(3.36833f, 1.9435f, 1.10207f)}},
+        {"TiO2", {Rgb(3.45661f, 2.80174f, 2.90517f), Rgb(0.000105265f, 0.f, 0.000652887f)}},
+        {"TiO2-e", {Rgb(3.10656f, 2.51317f, 2.58244f), Rgb(2.97516e-05f, 0.f, 0.000182698f)}},
+        {"TiO2-e_palik", {Rgb(3.10656f, 2.51317f, 2.58244f), Rgb(2.97516e-05f, 0.f, 0.000182698f)}},
+        {"TiO2_palik", {Rgb(3.45661f, 2.80174f, 2.90517f), Rgb(0.000105265f, 0.f, 0.000652887f)}},
+        {"V_palik", {Rgb(4.27758f, 3.51295f, 2.76107f), Rgb(3.4913f, 2.88945f, 3.11152f)}},
+        {"VC", {Rgb(3.65757f, 2.75274f, 2.53267f), Rgb(3.0683f, 2.19869f, 1.96319f)}},
+        {"VC_palik", {Rgb(3.65757f, 2.75274f, 2.53267f), Rgb(3.0683f, 2.19869f, 1.96319f)}},
+        {"VN", {Rgb(2.8656f, 2.11919f, 1.94009f), Rgb(3.03224f, 2.05612f, 1.61631f)}},
+        {"VN_palik", {Rgb(2.8656f, 2.11919f, 1.94009f), Rgb(3.03224f, 2.05612f, 1.61631f)}},
+        {"W", {Rgb(4.37082f, 3.30025f, 2.99841f), Rgb(3.50064f, 2.60487f, 2.27323f)}},
     };
+    return table;
+}
+
+}  // namespace
+
+std::optional<ConductorIor> lookup_conductor(const std::string& name) {
+    const auto& table = conductor_table();
     const auto it = table.find(name);
     if (it == table.end()) return std::nullopt;
     return it->second;
+}
+
+std::string conductor_names() {
+    std::string names;
+    for (const auto& [name, ior] : conductor_table()) names += (names.empty() ? "" : ", ") + name;
+    return names;
 }
 
 }  // namespace gdmlt

@@ -230,5 +230,7 @@ struct ConductorIor {
     Rgb eta, k;
 };
 std::optional<ConductorIor> lookup_conductor(const std::string& name);
+/// The names lookup_conductor knows, comma-separated (for error messages).
+std::string conductor_names();
 
 }  // namespace gdmlt

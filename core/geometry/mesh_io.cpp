@@ -3,15 +3,16 @@
 // filtering and validation are done here so that every format gets the same treatment.
 #include "core/geometry/mesh_io.h"
 
-#include <CGAL/IO/OBJ.h>
 #include <CGAL/IO/OFF.h>
 #include <CGAL/IO/PLY.h>
 #include <CGAL/Simple_cartesian.h>
+#include <tiny_obj_loader.h>
 #include <zlib.h>
 
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -19,6 +20,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <map>
 #include <optional>
 #include <sstream>
 #include <type_traits>
@@ -53,15 +55,114 @@ std::vector<Vec3d> to_vectors(const std::vector<CgalPoint>& points) {
     return vectors;
 }
 
+/// tinyobjloader reads a malformed number ("nan", "1.0.0") as 0 without a word; the lines of
+/// vertex data are therefore checked first: every value a number, finite, read whole.
+void check_obj_numbers(const std::string& text) {
+    std::size_t line_number = 0;
+    for (std::size_t start = 0; start < text.size();) {
+        std::size_t end = text.find('\n', start);
+        if (end == std::string::npos) end = text.size();
+        ++line_number;
+        std::istringstream line(text.substr(start, end - start));
+        start = end + 1;
+        std::string keyword;
+        if (!(line >> keyword) || (keyword != "v" && keyword != "vt" && keyword != "vn")) continue;
+        std::string token;
+        while (line >> token) {
+            double value = 0.0;
+            const char* first = token.data();
+            const char* last = first + token.size();
+            // A leading '+' is valid OBJ; from_chars does not take it.
+            if (first != last && *first == '+') ++first;
+            const auto [stop, error] = std::from_chars(first, last, value);
+            if (error != std::errc() || stop != last || !std::isfinite(value))
+                throw MeshReadError{"line " + std::to_string(line_number) + ": '" + token +
+                                    "' is not a finite number"};
+        }
+    }
+}
+
 PolygonSoup read_obj(std::istream& stream) {
-    // CGAL's OBJ reader keeps positions and faces only (vn/vt are skipped), so OBJ meshes get
-    // normals from compute_vertex_normals.
-    std::vector<CgalPoint> points;
+    // tinyobjloader reads the file (CGAL's OBJ reader keeps positions and faces only, and
+    // textured scenes need the texture coordinates and normals). As Mitsuba 3's OBJ loader
+    // does, a mesh vertex is a distinct (position, texture coordinate, normal) triple of the
+    // face corners, so that seams in uv or normals split vertices; vt's v is flipped
+    // (u, 1 - v), the image convention of Mitsuba 3 (checked against its loaded mesh); n-gons
+    // are triangulated later like every format's. Materials (mtllib, usemtl) are ignored.
+    std::ostringstream text;
+    text << stream.rdbuf();
+    check_obj_numbers(text.str());
+    tinyobj::ObjReaderConfig config;
+    config.triangulate = false;
+    config.vertex_color = false;
+    tinyobj::ObjReader reader;
+    if (!reader.ParseFromString(text.str(), "", config)) {
+        std::string why = reader.Error();
+        while (!why.empty() && std::isspace(static_cast<unsigned char>(why.back()))) why.pop_back();
+        throw MeshReadError{"not a readable OBJ file" + (why.empty() ? "" : ": " + why)};
+    }
+    const tinyobj::attrib_t& attrib = reader.GetAttrib();
+    const std::size_t n_positions = attrib.vertices.size() / 3;
+    const std::size_t n_uvs = attrib.texcoords.size() / 2;
+    const std::size_t n_normals = attrib.normals.size() / 3;
     PolygonSoup soup;
-    if (!CGAL::IO::read_OBJ(stream, points, soup.polygons, CGAL::parameters::verbose(false)))
-        throw MeshReadError{
-            "not a readable OBJ file (malformed or non-finite vertex, or bad face line)"};
-    soup.positions = to_vectors(points);
+    // An attribute that some corners lack is dropped for the whole mesh (the soup's attributes
+    // are per vertex, for all vertices or none), and then plays no part in telling vertices
+    // apart.
+    bool all_uvs = true, all_normals = true;
+    for (const tinyobj::shape_t& shape : reader.GetShapes())
+        for (const tinyobj::index_t& index : shape.mesh.indices) {
+            all_uvs = all_uvs && index.texcoord_index >= 0;
+            all_normals = all_normals && index.normal_index >= 0;
+        }
+    std::map<std::array<int, 3>, std::size_t> vertex_of;
+    std::vector<std::array<int, 3>> triples;
+    for (const tinyobj::shape_t& shape : reader.GetShapes()) {
+        std::size_t corner = 0;
+        for (const unsigned face_size : shape.mesh.num_face_vertices) {
+            if (corner + face_size > shape.mesh.indices.size())
+                throw MeshReadError{"face corners beyond the file's index list"};
+            Polygon polygon;
+            polygon.reserve(face_size);
+            for (unsigned k = 0; k < face_size; ++k, ++corner) {
+                const tinyobj::index_t& index = shape.mesh.indices[corner];
+                const std::array<int, 3> triple = {index.vertex_index,
+                                                   all_uvs ? index.texcoord_index : -1,
+                                                   all_normals ? index.normal_index : -1};
+                if (triple[0] < 0 || static_cast<std::size_t>(triple[0]) >= n_positions)
+                    throw MeshReadError{"a face refers to vertex " +
+                                        std::to_string(static_cast<long long>(triple[0]) + 1) +
+                                        " but there are " + std::to_string(n_positions)};
+                if (triple[1] >= 0 && static_cast<std::size_t>(triple[1]) >= n_uvs)
+                    throw MeshReadError{"a face refers to texture coordinate " +
+                                        std::to_string(static_cast<long long>(triple[1]) + 1) +
+                                        " but there are " + std::to_string(n_uvs)};
+                if (triple[2] >= 0 && static_cast<std::size_t>(triple[2]) >= n_normals)
+                    throw MeshReadError{"a face refers to normal " +
+                                        std::to_string(static_cast<long long>(triple[2]) + 1) +
+                                        " but there are " + std::to_string(n_normals)};
+                const auto [it, added] = vertex_of.try_emplace(triple, triples.size());
+                if (added) triples.push_back(triple);
+                polygon.push_back(it->second);
+            }
+            soup.polygons.push_back(std::move(polygon));
+        }
+    }
+    soup.positions.reserve(triples.size());
+    for (const auto& t : triples) {
+        const auto i = 3 * static_cast<std::size_t>(t[0]);
+        soup.positions.emplace_back(attrib.vertices[i], attrib.vertices[i + 1],
+                                    attrib.vertices[i + 2]);
+        if (all_uvs) {
+            const auto j = 2 * static_cast<std::size_t>(t[1]);
+            soup.uvs.emplace_back(attrib.texcoords[j], 1.0 - attrib.texcoords[j + 1]);
+        }
+        if (all_normals) {
+            const auto j = 3 * static_cast<std::size_t>(t[2]);
+            soup.normals.emplace_back(attrib.normals[j], attrib.normals[j + 1],
+                                      attrib.normals[j + 2]);
+        }
+    }
     return soup;
 }
 

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "core/geometry/shape.h"
 
+#include "core/geometry/triangle_tangent.h"
 #include "core/math/trig.h"
 #include "core/sampling/warp.h"
 
@@ -22,11 +23,21 @@ Vec3f face_normal(const TriangleMesh& mesh, std::size_t triangle) {
     return sign * (p1 - p0).cross(p2 - p0).normalized();
 }
 
-/// Fills `si` (default-constructed) for barycentrics `b` on `triangle`; `n_face` is the
-/// triangle's precomputed face_normal(). Writes into the caller's object rather than returning
-/// one: SurfaceInteraction is 136 bytes and this runs once per ray hit.
-void fill_mesh_interaction(const TriangleMesh& mesh, const Vec3f& n_face, std::uint32_t triangle,
-                           const Vec2f& b, SurfaceInteraction& si) {
+Vec3f frame_tangent(const TriangleMesh& mesh, std::size_t triangle) {
+    const std::uint32_t* index = &mesh.indices[3 * triangle];
+    const bool uvs = !mesh.uvs.empty();
+    return triangle_frame_tangent(mesh.positions[index[0]], mesh.positions[index[1]],
+                                  mesh.positions[index[2]], uvs ? &mesh.uvs[index[0]] : nullptr,
+                                  uvs ? &mesh.uvs[index[1]] : nullptr,
+                                  uvs ? &mesh.uvs[index[2]] : nullptr);
+}
+
+/// Fills `si` (default-constructed) for barycentrics `b` on `triangle`; `n_face` and `tangent`
+/// are the triangle's precomputed face_normal() and frame_tangent(). Writes into the caller's
+/// object rather than returning one: SurfaceInteraction is 136 bytes and this runs once per
+/// ray hit.
+void fill_mesh_interaction(const TriangleMesh& mesh, const Vec3f& n_face, const Vec3f& tangent,
+                           std::uint32_t triangle, const Vec2f& b, SurfaceInteraction& si) {
     const std::uint32_t* index = &mesh.indices[3 * static_cast<std::size_t>(triangle)];
     const std::uint32_t i0 = index[0], i1 = index[1], i2 = index[2];
     const float b0 = 1.f - b.x() - b.y();
@@ -47,7 +58,7 @@ void fill_mesh_interaction(const TriangleMesh& mesh, const Vec3f& n_face, std::u
     if (mesh.normals.empty()) {
         // Flat triangle: the shading normal is the face normal and dn/du = dn/dv = 0 (the
         // defaults), so only the tangent frame is left to build.
-        si.shading = Frame::from_normal_and_tangent(n_face, si.dp_du);
+        si.shading = Frame::from_normal_and_tangent(n_face, tangent);
     } else {
         const float sign = mesh.flip_normals ? -1.f : 1.f;
         Vec3f n_shading = n_face;
@@ -65,7 +76,7 @@ void fill_mesh_interaction(const TriangleMesh& mesh, const Vec3f& n_face, std::u
             si.dn_du = (sign * inv_length) * (dN_du - n * n.dot(dN_du));
             si.dn_dv = (sign * inv_length) * (dN_dv - n * n.dot(dN_dv));
         }
-        si.shading = Frame::from_normal_and_tangent(n_shading, si.dp_du);
+        si.shading = Frame::from_normal_and_tangent(n_shading, tangent);
     }
     if (!mesh.uvs.empty())
         si.uv = b0 * mesh.uvs[i0] + b.x() * mesh.uvs[i1] + b.y() * mesh.uvs[i2];
@@ -110,10 +121,12 @@ Shape::Shape(TriangleMesh mesh, int bsdf, std::string id)
     const auto& m = std::get<TriangleMesh>(geometry_);
     std::vector<float> areas(m.triangle_count());
     face_normals_.resize(m.triangle_count());
+    frame_tangents_.resize(m.triangle_count());
     double total = 0.0;
     for (std::size_t t = 0; t < areas.size(); ++t) {
         areas[t] = triangle_area(m, t);
         face_normals_[t] = face_normal(m, t);
+        frame_tangents_[t] = frame_tangent(m, t);
         total += areas[t];
     }
     area_ = static_cast<float>(total);
@@ -133,7 +146,8 @@ SurfaceInteraction Shape::interaction(std::uint32_t primitive, const Vec2f& bary
     // One object filled in place and returned by name (NRVO): no 136-byte copies per hit.
     SurfaceInteraction si;
     if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
-        fill_mesh_interaction(*mesh, face_normals_[primitive], primitive, barycentric, si);
+        fill_mesh_interaction(*mesh, face_normals_[primitive], frame_tangents_[primitive],
+                              primitive, barycentric, si);
     } else {
         const auto& sphere = std::get<Sphere>(geometry_);
         // Project the hit back onto the sphere: exact normal, position error ~ ulp(|p|).
@@ -150,7 +164,8 @@ SurfaceInteraction Shape::interaction(std::uint32_t primitive, const Vec2f& bary
 SurfaceInteraction Shape::interaction_at(std::uint32_t primitive, const Vec2f& param) const {
     SurfaceInteraction si;
     if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
-        fill_mesh_interaction(*mesh, face_normals_[primitive], primitive, param, si);
+        fill_mesh_interaction(*mesh, face_normals_[primitive], frame_tangents_[primitive],
+                              primitive, param, si);
     } else {
         const auto& sphere = std::get<Sphere>(geometry_);
         const float phi = 2.f * kPi * param.x(), theta = kPi * param.y();

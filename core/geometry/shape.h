@@ -62,6 +62,11 @@ class Shape {
 
     /// Unit face normal of mesh triangle `triangle` (flip_normals applied; zero if degenerate).
     const Vec3f& triangle_normal(std::uint32_t triangle) const { return face_normals_[triangle]; }
+    /// Reference tangent of mesh triangle `triangle`'s shading frame (triangle_tangent.h: dp/du
+    /// of its texture coordinates, or its first edge).
+    const Vec3f& triangle_frame_tangent(std::uint32_t triangle) const {
+        return frame_tangents_[triangle];
+    }
     /// A mesh's triangle chosen by area with `u_primitive`, as sample_area chooses it: its
     /// corners and unit face normal (null pointers for a sphere or a mesh without area).
     struct AreaTriangle {
@@ -112,6 +117,7 @@ class Shape {
     /// triangle): computed once instead of a cross product and a square root per hit and per
     /// emitter sample. 12 bytes per triangle, half of what positions and indices take.
     std::vector<Vec3f> face_normals_;
+    std::vector<Vec3f> frame_tangents_;
     AliasTable triangle_areas_;  // a triangle by area in constant time (alias_table.h)
     int bsdf_ = -1;
     int emitter_ = -1;

@@ -133,6 +133,7 @@ void DiffuseLanes::push_hit(std::uint32_t id, const RayHit& hit, const VertexNum
     set(a.corner1, i, mesh.positions[index[1]]);
     set(a.corner2, i, mesh.positions[index[2]]);
     set(a.n_geometric, i, shape.triangle_normal(hit.primitive));
+    set(a.frame_tangent, i, shape.triangle_frame_tangent(hit.primitive));
     a.bary_u[i] = hit.barycentric.x();
     a.bary_v[i] = hit.barycentric.y();
     push_path(i, hit.shape, u, state, settings,

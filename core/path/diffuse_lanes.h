@@ -87,6 +87,7 @@ class DiffuseLanes {
         // derives p and the frame from them.
         Lane from_hit;
         Lane3 corner0, corner1, corner2;
+        Lane3 frame_tangent;  // Shape::triangle_frame_tangent of the triangle
         Lane bary_u, bary_v;
         // The vertex (p and the frame: push only).
         Lane3 p, n_geometric, frame_s, frame_t, frame_n;

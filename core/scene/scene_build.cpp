@@ -704,7 +704,8 @@ struct Builder {
             if (!ior)
                 throw InputError(props.loc_of("material"),
                                  "unknown conductor material '" + material +
-                                     "' (known: none, Ag, Al, Au, Cu, Cr)");
+                                     "' (known: none and Mitsuba 3's list: " + conductor_names() +
+                                     ")");
             *eta = ior->eta;
             *k = ior->k;
             *perfect_mirror = false;

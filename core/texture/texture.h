@@ -13,6 +13,7 @@
 // so textures stay cheap to copy and evaluation never allocates.
 #include <memory>
 #include <string>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -122,7 +123,9 @@ class FloatTexture {
     FloatTexture() = default;
     FloatTexture(float constant) : constant_(constant) {}  // NOLINT: implicit on purpose
     explicit FloatTexture(RgbTexture texture)
-        : texture_(std::move(texture)), constant_(0.f), is_constant_(texture_.is_constant()) {
+        : texture_(as_scalar(std::move(texture))),
+          constant_(0.f),
+          is_constant_(texture_.is_constant()) {
         if (is_constant_) constant_ = luminance(texture_.eval(Vec2f::Zero()));
     }
 
@@ -134,6 +137,18 @@ class FloatTexture {
     float max_value() const { return is_constant_ ? constant_ : texture_.max_luminance(); }
 
   private:
+    /// Mitsuba 3's checkerboard gives color0 where the two halves agree when evaluated as a
+    /// colour (Checkerboard::eval) but where they differ when evaluated as a scalar (eval_1,
+    /// as for roughness): a scalar checkerboard is its colour form with the colours swapped.
+    static RgbTexture as_scalar(RgbTexture texture) {
+        if (const auto* c = std::get_if<CheckerboardTexture>(&texture.model())) {
+            CheckerboardTexture swapped = *c;
+            std::swap(swapped.color0, swapped.color1);
+            return RgbTexture(TextureModel(swapped));
+        }
+        return texture;
+    }
+
     RgbTexture texture_;
     float constant_ = 0.f;
     bool is_constant_ = true;

@@ -5,6 +5,8 @@
 
 #include <complex>
 #include <cstdio>
+#include <string>
+#include <vector>
 
 #include "core/bsdf/bsdf.h"
 #include "core/bsdf/fresnel.h"
@@ -243,6 +245,42 @@ TEST(Frame, IsOrthonormalForAnyNormal) {
         const Vec3f v(0.3f, -0.2f, 0.9f);
         EXPECT_NEAR((f.to_world(f.to_local(v)) - v).norm(), 0.f, 1e-5f);
     }
+}
+
+TEST(Conductor, EveryMaterialOfMitsuba3IsKnownAndPhysical) {
+    // Mitsuba 3's conductor plugin documents these names (its material table): each must be
+    // known, with finite non-negative eta and k, and a normal-incidence reflectance
+    // ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2) in [0, 1] per channel.
+    const std::vector<std::string> names = {
+        "a-C",        "Ag",         "Al",        "AlAs",         "AlAs_palik",
+        "AlSb",       "AlSb_palik", "Au",        "Be",           "Be_palik",
+        "Cr",         "CsI",        "CsI_palik", "Cu",           "Cu2O",
+        "Cu2O_palik", "Cu_palik",   "CuO",       "CuO_palik",    "d-C",
+        "d-C_palik",  "Hg",         "Hg_palik",  "HgTe",         "HgTe_palik",
+        "Ir",         "Ir_palik",   "K",         "K_palik",      "Li",
+        "Li_palik",   "MgO",        "MgO_palik", "Mo",           "Mo_palik",
+        "Na_palik",   "Nb",         "Nb_palik",  "Ni_palik",     "Rh",
+        "Rh_palik",   "Se",         "Se-e",      "Se-e_palik",   "Se_palik",
+        "SiC",        "SiC_palik",  "SnTe",      "SnTe_palik",   "Ta",
+        "Ta_palik",   "Te",         "Te-e",      "Te-e_palik",   "Te_palik",
+        "ThF4",       "ThF4_palik", "TiC",       "TiC_palik",    "TiN",
+        "TiN_palik",  "TiO2",       "TiO2-e",    "TiO2-e_palik", "TiO2_palik",
+        "V_palik",    "VC",         "VC_palik",  "VN",           "VN_palik",
+        "W"};
+    for (const std::string& name : names) {
+        const auto ior = lookup_conductor(name);
+        ASSERT_TRUE(ior.has_value()) << name;
+        for (int c = 0; c < 3; ++c) {
+            const float eta = ior->eta[c], k = ior->k[c];
+            EXPECT_TRUE(std::isfinite(eta) && eta >= 0.f) << name << " eta " << eta;
+            EXPECT_TRUE(std::isfinite(k) && k >= 0.f) << name << " k " << k;
+            const float r =
+                ((eta - 1.f) * (eta - 1.f) + k * k) / ((eta + 1.f) * (eta + 1.f) + k * k);
+            EXPECT_TRUE(r >= 0.f && r <= 1.f) << name << " reflectance " << r;
+        }
+    }
+    EXPECT_FALSE(lookup_conductor("unobtainium").has_value());
+    EXPECT_NE(conductor_names().find("a-C"), std::string::npos);
 }
 
 }  // namespace

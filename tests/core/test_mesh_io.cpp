@@ -5,6 +5,7 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -229,6 +230,46 @@ TEST(MeshIo, LoadsObjTriangles) {
     EXPECT_EQ(mesh.triangle_count(), 2u);
     EXPECT_EQ(mesh.degenerate_triangles_dropped, 0u);
     EXPECT_EQ(mesh.indices, (std::vector<std::uint32_t>{0, 1, 2, 1, 3, 2}));
+}
+
+TEST(MeshIo, ObjKeepsTextureCoordinatesAndNormalsAsMitsubaDoes) {
+    // Mitsuba 3's OBJ loader (probed with this file in 3.9.1): a vertex per distinct
+    // (position, vt, vn) of the face corners, texture coordinates (u, 1 - v), the file's
+    // normals. Here position 1 is used with two normals, so it becomes two vertices; the quad
+    // is two triangles.
+    const TempDir dir;
+    const std::string path = dir.write("quad.obj",
+                                       "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+                                       "vt 0.1 0.2\nvt 0.9 0.2\nvt 0.9 0.7\nvt 0.1 0.7\n"
+                                       "vn 0 0 1\nvn 0 0.6 0.8\n"
+                                       "f 1/1/1 2/2/1 3/3/2 4/4/2\n"
+                                       "f 1/1/1 3/3/2 4/4/1\n");
+    const TriangleMeshData mesh = load_mesh(path, kSceneLoc);
+    ASSERT_EQ(mesh.positions.size(), 5u);
+    ASSERT_EQ(mesh.uvs.size(), 5u);
+    ASSERT_EQ(mesh.normals.size(), 5u);
+    EXPECT_EQ(mesh.triangle_count(), 3u);
+    const std::vector<std::array<float, 8>> want = {// position, uv, normal
+                                                    {0, 0, 0, 0.1f, 0.8f, 0, 0, 1},
+                                                    {1, 0, 0, 0.9f, 0.8f, 0, 0, 1},
+                                                    {1, 1, 0, 0.9f, 0.3f, 0, 0.6f, 0.8f},
+                                                    {0, 1, 0, 0.1f, 0.3f, 0, 0.6f, 0.8f},
+                                                    {0, 1, 0, 0.1f, 0.3f, 0, 0, 1}};
+    for (const auto& w : want) {
+        bool found = false;
+        for (std::size_t i = 0; i < mesh.positions.size() && !found; ++i)
+            found = (mesh.positions[i] - Vec3f(w[0], w[1], w[2])).norm() < 1e-6f &&
+                    (mesh.uvs[i] - Vec2f(w[3], w[4])).norm() < 1e-6f &&
+                    (mesh.normals[i] - Vec3f(w[5], w[6], w[7])).norm() < 1e-6f;
+        EXPECT_TRUE(found) << w[0] << " " << w[1] << " " << w[2] << " uv " << w[3] << " " << w[4];
+    }
+}
+
+TEST(MeshIo, ObjFaceIndexBeyondTheFileIsAnInputError) {
+    const TempDir dir;
+    load_error(dir.write("vt.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/2 3/1\n"));
+    load_error(dir.write("v.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n"));
+    load_error(dir.write("word.obj", "v 0 0 0\nv 1 0 zero\nv 0 1 0\nf 1 2 3\n"));
 }
 
 TEST(MeshIo, TriangulatesAQuadKeepingItsWinding) {

@@ -91,6 +91,25 @@ TEST(BitmapTexture, BilinearLookupsMatchTheirDefinitionInEveryWrapMode) {
     }
 }
 
+TEST(Checkerboard, ScalarFormSwapsTheColoursAsMitsubaEvaluatesIt) {
+    // Mitsuba 3's checkerboard: eval (colour) is color0 where u and v fall in the same half of
+    // their period, eval_1 (scalar, e.g. roughness) is color0 where they fall in different
+    // halves. Rendering Mitsuba's textured rough conductor test scene showed the difference.
+    CheckerboardTexture c;
+    c.color0 = Rgb::Constant(0.05f);
+    c.color1 = Rgb::Constant(0.3f);
+    const RgbTexture colour{TextureModel(c)};
+    const FloatTexture scalar{colour};
+    for (const Vec2f& same : {Vec2f(0.25f, 0.25f), Vec2f(0.75f, 0.75f), Vec2f(1.2f, 0.1f)}) {
+        EXPECT_FLOAT_EQ(colour.eval(same)[0], 0.05f);
+        EXPECT_FLOAT_EQ(scalar.eval(same), 0.3f);
+    }
+    for (const Vec2f& different : {Vec2f(0.25f, 0.75f), Vec2f(0.75f, 0.25f)}) {
+        EXPECT_FLOAT_EQ(colour.eval(different)[0], 0.3f);
+        EXPECT_FLOAT_EQ(scalar.eval(different), 0.05f);
+    }
+}
+
 TEST(BitmapTexture, LinearisesEightBitFilesUnlessRaw) {
     // An 8-bit sRGB PNG written from linear values reads back linear (to 8-bit quantisation).
     const std::string path =
@@ -129,7 +148,8 @@ TEST(FloatTexture, ReadsLuminanceAndReportsItsRange) {
     c.color0 = Rgb::Constant(0.05f);
     c.color1 = Rgb::Constant(0.5f);
     const FloatTexture checker{RgbTexture(TextureModel(c))};
-    EXPECT_NEAR(checker.eval({0.25f, 0.25f}), 0.05f, 1e-6f);
+    // A scalar checkerboard is color0 where u and v fall in different halves (Mitsuba 3).
+    EXPECT_NEAR(checker.eval({0.75f, 0.25f}), 0.05f, 1e-6f);
     EXPECT_NEAR(checker.min_value(), 0.05f, 1e-6f);
     EXPECT_NEAR(checker.max_value(), 0.5f, 1e-6f);
 }
@@ -147,9 +167,10 @@ TEST(SceneTextures, NestedAndReferencedTexturesReachTheBsdfs) {
     EXPECT_NEAR(diffuse.reflectance.eval({0.25f, 0.25f})[0], 0.9f, 1e-6f);
     EXPECT_NEAR(diffuse.reflectance.eval({0.75f, 0.25f})[0], 0.1f, 1e-6f);
     const Bsdf& metal = scene.bsdfs()[1];
-    // Textured roughness: per-uv classes, and the sharpest place summarises the surface.
-    EXPECT_EQ(metal.roughness_class_at({0.25f, 0.25f}), RoughnessClass::Glossy);
-    EXPECT_EQ(metal.roughness_class_at({0.75f, 0.25f}), RoughnessClass::Diffuse);
+    // Textured roughness: per-uv classes, and the sharpest place summarises the surface (the
+    // scalar checkerboard's color0, 0.01, where u and v fall in different halves).
+    EXPECT_EQ(metal.roughness_class_at({0.75f, 0.25f}), RoughnessClass::Glossy);
+    EXPECT_EQ(metal.roughness_class_at({0.25f, 0.25f}), RoughnessClass::Diffuse);
     EXPECT_EQ(metal.roughness_class(), RoughnessClass::Glossy);
 }
 

@@ -27,6 +27,7 @@
 #include "manifold/constraints.h"
 #include "manifold/generalized_geometry.h"
 #include "manifold/manifold_walk.h"
+#include "manifold/surface_point.h"
 #include "tests/support/scene_fixtures.h"
 
 namespace gdmlt::manifold {
@@ -323,6 +324,38 @@ TEST(Constraints, TracedChainsSatisfyTheirConstraints) {
                 EXPECT_LT(c->norm(), 1e-12) << name(kind) << " k=" << k << " vertex " << i;
             }
         }
+    }
+}
+
+TEST(Constraints, ShadingFrameFollowsTheTextureAndMatchesTheRenderersFrame) {
+    // A triangle whose texture u runs along world y (not along its first edge, x): the shading
+    // frame's s must follow u (Mitsuba 3 orients anisotropic BSDFs by the texture's dp/du), and
+    // the manifold walk's frame (constraint_frame) must be the surface interaction's, or
+    // anisotropic half-vector constraints would be solved in another frame than the one the
+    // BSDF is evaluated in. A smooth normal tilts the frame; 20 points (seed 7).
+    TriangleMesh mesh;
+    mesh.positions = {{0, 0, 0}, {2, 0, 0.3f}, {0, 1, 0.1f}};
+    mesh.indices = {0, 1, 2};
+    mesh.uvs = {{0, 0}, {0, 1}, {1, 0}};  // u grows along p2 - p0, v along p1 - p0
+    mesh.normals = {Vec3f(0.1f, 0, 1).normalized(), Vec3f(0, 0.2f, 1).normalized(),
+                    Vec3f(-0.1f, 0.1f, 1).normalized()};
+    const Shape shape(std::move(mesh), 0, "t");
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> uniform(0.05f, 0.45f);
+    for (int i = 0; i < 20; ++i) {
+        const Vec2f b(uniform(rng), uniform(rng));
+        SurfaceInteraction si = shape.interaction_at(0, b);
+        si.shape = 0;
+        const std::optional<SurfacePoint> sp = surface_point_from(shape, si);
+        ASSERT_TRUE(sp.has_value());
+        const std::optional<ConstraintFrame> frame = constraint_frame(*sp);
+        ASSERT_TRUE(frame.has_value());
+        EXPECT_LT((frame->s - si.shading.s.cast<double>()).norm(), 1e-5) << i;
+        EXPECT_LT((frame->t - si.shading.t.cast<double>()).norm(), 1e-5) << i;
+        // dp/du = p2 - p0 here: s is its part orthogonal to the shading normal.
+        const Vec3f du = Vec3f(0, 1, 0.1f);
+        const Vec3f want = (du - si.shading.n * si.shading.n.dot(du)).normalized();
+        EXPECT_LT((si.shading.s - want).norm(), 1e-5f) << i;
     }
 }
 
