@@ -13,11 +13,12 @@ const char* emitter_kind_name(const Emitter& e) {
     if (std::holds_alternative<SpotEmitter>(e)) return "spot";
     if (std::holds_alternative<DirectionalEmitter>(e)) return "directional";
     if (std::holds_alternative<EnvmapEmitter>(e)) return "envmap";
+    if (std::holds_alternative<ProjectorEmitter>(e)) return "projector";
     return "constant";
 }
 
 SpotEmitter make_spot(const Vec3f& position, const Mat3f& world_from_local, const Rgb& intensity,
-                      float cutoff_deg, float beam_width_deg) {
+                      float cutoff_deg, float beam_width_deg, std::optional<RgbTexture> texture) {
     SpotEmitter s;
     s.position = position;
     s.local_from_world = world_from_local.transpose();
@@ -27,6 +28,11 @@ SpotEmitter make_spot(const Vec3f& position, const Mat3f& world_from_local, cons
     s.beam_width_rad = std::min(degrees_to_radians(beam_width_deg), s.cutoff_rad * (1.f - 1e-6f));
     s.cos_cutoff = std::cos(s.cutoff_rad);
     s.cos_beam_width = std::cos(s.beam_width_rad);
+    s.tan_cutoff = std::tan(s.cutoff_rad);
+    if (texture) {
+        s.textured = true;
+        s.texture = std::move(*texture);
+    }
     return s;
 }
 

@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
 // Emitters as a closed set of value types, with Mitsuba 3's plugin meanings:
-//  area (textured radiance), point, spot, directional, constant and envmap.
+//  area (textured radiance), point, spot, directional, constant, envmap and projector.
 #include <memory>
+#include <optional>
 #include <variant>
 
+#include "core/camera/camera.h"
 #include "core/math/types.h"
 #include "core/sampling/distribution_2d.h"
 #include "core/texture/texture.h"
@@ -25,7 +27,9 @@ struct PointEmitter {
 };
 
 /// Mitsuba's `spot`: a point light shining along its local +z, full intensity inside
-/// `beam_width`, falling off linearly in angle to zero at `cutoff_angle`. Build with
+/// `beam_width`, falling off linearly in angle to zero at `cutoff_angle`, optionally modulated by
+/// a texture projected over the cutoff cone (Mitsuba 3's `texture` parameter: u, v = 1/2 +
+/// x / (2 z tan(cutoff)), 1/2 + y / (2 z tan(cutoff)) in the local frame). Build with
 /// make_spot(), which precomputes the cosines.
 struct SpotEmitter {
     Vec3f position = Vec3f::Zero();
@@ -35,19 +39,56 @@ struct SpotEmitter {
     float beam_width_rad = 0.f;
     float cos_cutoff = 1.f;
     float cos_beam_width = 1.f;
+    float tan_cutoff = 0.f;
+    bool textured = false;
+    RgbTexture texture{Rgb::Ones()};
 
     /// Intensity (W/sr) emitted along the unit world direction `w` (from the light outwards).
     Rgb intensity_towards(const Vec3f& w) const {
-        const float cos_theta = (local_from_world * w).z();
+        const Vec3f local = local_from_world * w;
+        const float cos_theta = local.z();
         if (!(cos_theta > cos_cutoff)) return Rgb::Zero();
-        if (cos_theta >= cos_beam_width) return intensity;
+        const Rgb base = textured ? Rgb(intensity * texture.eval(texture_uv(local))) : intensity;
+        if (cos_theta >= cos_beam_width) return base;
         const float falloff = (cutoff_rad - safe_acos(cos_theta)) / (cutoff_rad - beam_width_rad);
-        return intensity * std::clamp(falloff, 0.f, 1.f);
+        return base * std::clamp(falloff, 0.f, 1.f);
+    }
+    /// Where the local direction `local` (z > 0) falls on the projected texture.
+    Vec2f texture_uv(const Vec3f& local) const {
+        const float scale = 0.5f / (local.z() * tan_cutoff);
+        return {0.5f + local.x() * scale, 0.5f + local.y() * scale};
     }
 };
+/// Mitsuba's `projector`: a pinhole that projects the `irradiance` texture as a perspective
+/// camera with the same parameters would see it (the texture's pixels are the film's), so that
+/// the irradiance on a plane facing it at distance 1 is the texture times `scale`. Intensity
+/// towards a direction at angle theta from the axis is pi scale E(uv) / cos^3(theta) (Mitsuba
+/// 3's projector.cpp: its radiance pi E / (z^2 cos) at a point of camera depth z).
+struct ProjectorEmitter {
+    PerspectiveCamera camera;  // the projection: film = the texture's pixels, crop = all of it
+    RgbTexture irradiance{Rgb::Ones()};
+    float scale = 1.f;
+    Vec3f axis = Vec3f::UnitZ();  // unit world direction of the optical axis
+
+    /// Intensity (W/sr) along the unit world direction `w` from the pinhole; zero outside the
+    /// projected image.
+    Rgb intensity_towards(const Vec3f& w) const {
+        const CameraConnection c = camera.connect(camera.position() + w);
+        const float cos_theta = w.dot(axis);
+        if (!c.valid() || !(cos_theta > 0.f)) return Rgb::Zero();
+        const Film& film = camera.film();
+        const Vec2f uv(c.film_position.x() / static_cast<float>(film.width),
+                       c.film_position.y() / static_cast<float>(film.height));
+        return irradiance.eval(uv) * (kPi * scale / (cos_theta * cos_theta * cos_theta));
+    }
+    /// Area of the projected image on the plane at distance 1 (for its total power).
+    float image_area() const { return 4.f * camera.tan_half_fov_x() * camera.tan_half_fov_y(); }
+};
+
 /// Angles in degrees, Mitsuba's defaults: cutoff 20, beam width 3/4 of the cutoff.
 SpotEmitter make_spot(const Vec3f& position, const Mat3f& world_from_local, const Rgb& intensity,
-                      float cutoff_deg, float beam_width_deg);
+                      float cutoff_deg, float beam_width_deg,
+                      std::optional<RgbTexture> texture = std::nullopt);
 
 /// Mitsuba's `directional`: parallel light travelling along `direction` with the given
 /// irradiance (W/m^2 on a surface facing it).
@@ -118,11 +159,26 @@ struct EnvmapEmitter {
 };
 
 using Emitter = std::variant<AreaEmitter, PointEmitter, SpotEmitter, DirectionalEmitter,
-                             ConstantEmitter, EnvmapEmitter>;
+                             ConstantEmitter, EnvmapEmitter, ProjectorEmitter>;
 
 /// Emitters with a Dirac delta in position (shadow rays to one point).
 inline bool is_delta_position(const Emitter& e) {
-    return std::holds_alternative<PointEmitter>(e) || std::holds_alternative<SpotEmitter>(e);
+    return std::holds_alternative<PointEmitter>(e) || std::holds_alternative<SpotEmitter>(e) ||
+           std::holds_alternative<ProjectorEmitter>(e);
+}
+/// A delta-position emitter's position and its intensity (W/sr) along the unit world direction
+/// `w` leaving it (point, spot, projector).
+inline Vec3f delta_position_of(const Emitter& e) {
+    if (const auto* spot = std::get_if<SpotEmitter>(&e)) return spot->position;
+    if (const auto* projector = std::get_if<ProjectorEmitter>(&e))
+        return projector->camera.position();
+    return std::get<PointEmitter>(e).position;
+}
+inline Rgb delta_intensity_towards(const Emitter& e, const Vec3f& w) {
+    if (const auto* spot = std::get_if<SpotEmitter>(&e)) return spot->intensity_towards(w);
+    if (const auto* projector = std::get_if<ProjectorEmitter>(&e))
+        return projector->intensity_towards(w);
+    return std::get<PointEmitter>(e).intensity;
 }
 /// Emitters with a Dirac delta in direction.
 inline bool is_delta_direction(const Emitter& e) {

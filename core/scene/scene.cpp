@@ -55,7 +55,13 @@ Scene::Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emi
         } else if (const auto* spot = std::get_if<SpotEmitter>(&e)) {
             // The cone out to the middle of the falloff (pbrt-v4's SpotLight::Phi estimate).
             const float half = 0.5f * (spot->cutoff_rad + spot->beam_width_rad);
-            power[i] = 2.f * kPi * (1.f - std::cos(half)) * luminance(spot->intensity);
+            power[i] = 2.f * kPi * (1.f - std::cos(half)) * luminance(spot->intensity) *
+                       (spot->textured ? luminance(spot->texture.mean_value()) : 1.f);
+        } else if (const auto* projector = std::get_if<ProjectorEmitter>(&e)) {
+            // The integral of pi scale E / cos^3 over the solid angle of the image, which is
+            // cos^3 dA on the plane at distance 1: pi scale E A.
+            power[i] = kPi * projector->scale * luminance(projector->irradiance.mean_value()) *
+                       projector->image_area();
         } else if (const auto* directional = std::get_if<DirectionalEmitter>(&e)) {
             power[i] = disk_area * luminance(directional->irradiance);
         } else if (const auto* constant = std::get_if<ConstantEmitter>(&e)) {
@@ -156,9 +162,7 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         s.pdf_solid_angle = pmf * dist2 / (cos_light * area_total);
         s.radiance = area->radiance.eval(uv);
     } else if (is_delta_position(e)) {
-        const bool is_spot = std::holds_alternative<SpotEmitter>(e);
-        const Vec3f position =
-            is_spot ? std::get<SpotEmitter>(e).position : std::get<PointEmitter>(e).position;
+        const Vec3f position = delta_position_of(e);
         const Vec3f d = position - ref_p;
         const float dist2 = d.squaredNorm();
         if (!(dist2 > 0.f)) {
@@ -168,8 +172,7 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         s.distance = std::sqrt(dist2);
         s.wi = d / s.distance;
         s.p = position;
-        const Rgb intensity = is_spot ? std::get<SpotEmitter>(e).intensity_towards(-s.wi)
-                                      : std::get<PointEmitter>(e).intensity;
+        const Rgb intensity = delta_intensity_towards(e, -s.wi);
         if (is_black(intensity)) {
             s = EmitterSample{};
             return s;
@@ -303,6 +306,21 @@ EmittedRay Scene::sample_emitted_ray(float u_select, const Vec2f& u_position,
         r.pdf_direction = warp::square_to_uniform_cone_pdf_solid_angle(spot->cos_cutoff);
         r.delta_position = true;
         r.weight = r.radiance / (r.pdf_position * r.pdf_direction);
+    } else if (const auto* projector = std::get_if<ProjectorEmitter>(&e)) {
+        // Uniform over the projected image (film positions uniform over the texture's pixels;
+        // Mitsuba 3 samples them by the texture, which only changes the noise).
+        const Film& film = projector->camera.film();
+        const Ray ray =
+            projector->camera.generate_ray({u_direction.x() * static_cast<float>(film.width),
+                                            u_direction.y() * static_cast<float>(film.height)});
+        r.origin = projector->camera.position();
+        r.direction = ray.direction;
+        r.radiance = projector->intensity_towards(r.direction);
+        r.pdf_position = pmf;
+        r.pdf_direction = projector->camera.pdf_direction_solid_angle(r.direction);
+        r.delta_position = true;
+        if (!(r.pdf_direction > 0.f)) return EmittedRay{};
+        r.weight = r.radiance / (r.pdf_position * r.pdf_direction);
     } else if (const auto* directional = std::get_if<DirectionalEmitter>(&e)) {
         r.direction = directional->direction;
         r.origin = disk_origin(-directional->direction);
@@ -359,6 +377,10 @@ EmissionPdf Scene::pdf_emitted_ray(int emitter, const Vec3f& n_geometric,
         if (!((spot->local_from_world * direction).z() > spot->cos_cutoff)) return pdf;
         pdf.position = pmf;
         pdf.direction = warp::square_to_uniform_cone_pdf_solid_angle(spot->cos_cutoff);
+    } else if (const auto* projector = std::get_if<ProjectorEmitter>(&e)) {
+        pdf.direction = projector->camera.pdf_direction_solid_angle(direction);
+        if (!(pdf.direction > 0.f)) return EmissionPdf{};
+        pdf.position = pmf;
     } else if (std::holds_alternative<DirectionalEmitter>(e)) {
         pdf.position = pmf / (kPi * bounds_radius_ * bounds_radius_);
         pdf.direction = 1.f;

@@ -512,13 +512,10 @@ struct Builder {
             props.check_all_used();
     }
 
-    void build_sensor(const ObjectDesc& obj) {
-        if (obj.type != "perspective")
-            throw InputError(obj.loc,
-                             "unsupported sensor '" + obj.type + "' (supported: perspective)");
-        Properties props(obj, diagnostics);
-        // Mitsuba 3 (parse_fov): `fov` along `fov_axis`, or else `focal_length` ("50mm" when
-        // neither is given) of a 36 x 24 mm full-frame film along its diagonal.
+    /// Mitsuba 3's parse_fov, shared by the perspective sensor and the projector: `fov` (degrees)
+    /// along `fov_axis`, or else `focal_length` ("50mm" when neither is given) of a 36 x 24 mm
+    /// full-frame film along its diagonal.
+    std::pair<float, std::string> read_fov(Properties& props) const {
         if (props.has("fov") && props.has("focal_length"))
             throw InputError(props.loc_of("focal_length"),
                              "give either fov or focal_length, not both");
@@ -547,6 +544,21 @@ struct Builder {
                 180.0 / std::numbers::pi);
             props.ignore("fov_axis");  // Mitsuba does not read it with a focal length
         }
+        if (!(fov > 0.f && fov < 180.f))
+            throw InputError(props.loc_of("fov"), "fov must be in (0, 180)");
+        static const std::set<std::string> axes = {"x", "y", "diagonal", "smaller", "larger"};
+        if (!axes.count(fov_axis))
+            throw InputError(props.loc_of("fov_axis"),
+                             "fov_axis must be x, y, diagonal, smaller or larger");
+        return {fov, fov_axis};
+    }
+
+    void build_sensor(const ObjectDesc& obj) {
+        if (obj.type != "perspective")
+            throw InputError(obj.loc,
+                             "unsupported sensor '" + obj.type + "' (supported: perspective)");
+        Properties props(obj, diagnostics);
+        const auto [fov, fov_axis] = read_fov(props);
         const auto near_clip = static_cast<float>(props.get_float("near_clip", 0.01));
         props.ignore("far_clip");
         // Mitsuba 3's projective cameras all read focus_distance; only the thin lens uses it,
@@ -558,12 +570,6 @@ struct Builder {
         if (!(near_clip > 0.f && near_clip <= kMaxWorldCoordinate))
             throw InputError(props.loc_of("near_clip"),
                              "near_clip must be positive and finite (at most 1e16)");
-        if (!(fov > 0.f && fov < 180.f))
-            throw InputError(props.loc_of("fov"), "fov must be in (0, 180)");
-        static const std::set<std::string> axes = {"x", "y", "diagonal", "smaller", "larger"};
-        if (!axes.count(fov_axis))
-            throw InputError(props.loc_of("fov_axis"),
-                             "fov_axis must be x, y, diagonal, smaller or larger");
         props.check_all_used();
 
         Film film;  // Mitsuba's default film: 768 x 576, Gaussian filter
@@ -1023,11 +1029,47 @@ struct Builder {
             check_world_point(to_world.apply_point(Vec3d(Vec3d::Zero())), props.loc_of("to_world"),
                               "the spot light");
             const Vec3f position = to_world.apply_point(Vec3d(Vec3d::Zero())).cast<float>();
+            std::optional<RgbTexture> texture;
+            if (textures.has("texture")) {
+                texture = textures.rgb("texture", Rgb::Ones(), SpectrumUse::Reflectance);
+                features.has_textures = true;
+            }
             emitters.emplace_back(
                 make_spot(position, rotation,
                           props.get_rgb("intensity", Rgb::Ones(), true, SpectrumUse::Emission),
-                          cutoff, beam));
+                          cutoff, beam, std::move(texture)));
             features.has_delta_emitters = true;
+        } else if (obj.type == "projector") {
+            // Mitsuba 3's projector (its parameters: irradiance, scale, to_world and the
+            // perspective camera's fov, fov_axis, focal_length): the texture's pixels are the
+            // film of a pinhole camera that projects them.
+            if (!textures.has("irradiance"))
+                throw InputError(obj.loc, "projector: an irradiance texture is required");
+            RgbTexture irradiance =
+                textures.rgb("irradiance", Rgb::Ones(), SpectrumUse::Reflectance);
+            int width = 1, height = 1;
+            if (const auto* bitmap = std::get_if<BitmapTexture>(&irradiance.model())) {
+                width = bitmap->data->width;
+                height = bitmap->data->height;
+            }
+            const auto [fov, fov_axis] = read_fov(props);
+            const Transform to_world = props.get_transform("to_world");
+            check_world_point(to_world.apply_point(Vec3d(Vec3d::Zero())), props.loc_of("to_world"),
+                              "the projector");
+            ProjectorEmitter projector;
+            projector.scale = static_cast<float>(props.get_float("scale", 1.0));
+            if (!(projector.scale >= 0.f) || !std::isfinite(projector.scale))
+                throw InputError(props.loc_of("scale"), "scale must be finite and >= 0");
+            Film film;
+            film.width = film.crop_width = width;
+            film.height = film.crop_height = height;
+            film.filter = PixelFilter();  // box: the film only maps directions here
+            projector.camera = PerspectiveCamera(to_world, film, fov, fov_axis, 1e-4f);
+            projector.irradiance = std::move(irradiance);
+            projector.axis = to_world.apply_vector(Vec3d(0.0, 0.0, 1.0)).normalized().cast<float>();
+            emitters.emplace_back(std::move(projector));
+            features.has_delta_emitters = true;
+            features.has_textures = true;
         } else if (obj.type == "directional") {
             DirectionalEmitter d;
             if (props.has("direction") && props.has("to_world"))
@@ -1071,8 +1113,9 @@ struct Builder {
             features.has_textures = true;
         } else {
             diagnostics.unknown(
-                obj.loc, "unknown emitter '" + obj.type +
-                             "' (supported: area, point, spot, directional, constant, envmap)");
+                obj.loc,
+                "unknown emitter '" + obj.type +
+                    "' (supported: area, point, spot, directional, constant, envmap, projector)");
             return;
         }
         features.emitter_kinds.insert(obj.type);

@@ -278,6 +278,70 @@ TEST(SceneEmitters, SpotAndDirectionalLightsFollowMitsubasDefinitions) {
     EXPECT_TRUE(saw_spot && saw_directional);
 }
 
+TEST(SceneEmitters, SpotTextureIsProjectedOverTheCutoffCone) {
+    // Mitsuba 3's spot texture: a local direction (x, y, z) reads the texture at
+    // (1/2 + x / (2 z tan(cutoff)), 1/2 + y / (2 z tan(cutoff))). The lookat frame puts local x
+    // along cross(up, axis) = world -x and local y along world y. A checkerboard (color0 where
+    // u and v fall in the same half) tells the quadrants apart; beam = cutoff: no falloff.
+    const Scene scene = test::scene_from_xml(R"(
+        <emitter type="spot"><rgb name="intensity" value="8"/><float name="cutoff_angle" value="30"/>
+            <float name="beam_width" value="30"/>
+            <texture name="texture" type="checkerboard"><rgb name="color0" value="1"/><rgb name="color1" value="0.25"/></texture>
+            <transform name="to_world"><lookat origin="0, 0, 2" target="0, 0, 0" up="0, 1, 0"/></transform></emitter>
+        <shape type="rectangle"/>)");
+    const auto& spot = std::get<SpotEmitter>(scene.emitters()[0]);
+    const float t = std::tan(degrees_to_radians(30.f));
+    const auto world = [&](float x, float y) { return Vec3f(-x * t, y * t, -1.f).normalized(); };
+    EXPECT_NEAR(spot.intensity_towards(world(-0.5f, -0.5f))[0], 8.f, 1e-4f);  // uv (1/4, 1/4)
+    EXPECT_NEAR(spot.intensity_towards(world(0.5f, 0.5f))[0], 8.f, 1e-4f);    // uv (3/4, 3/4)
+    EXPECT_NEAR(spot.intensity_towards(world(0.5f, -0.5f))[0], 2.f, 1e-4f);   // uv (3/4, 1/4)
+    EXPECT_NEAR(spot.intensity_towards(world(-0.5f, 0.5f))[0], 2.f, 1e-4f);   // uv (1/4, 3/4)
+    EXPECT_EQ(spot.intensity_towards(world(1.2f, 0.f))[0], 0.f);              // beyond the cutoff
+}
+
+TEST(SceneEmitters, ProjectorIrradianceOnThePlaneAtUnitDistanceIsUniform) {
+    // Mitsuba 3's projector: its intensity pi scale E(uv) / cos^3 makes the irradiance on the
+    // plane one unit along its axis pi scale E wherever the image falls (here a constant
+    // texture, 0.5, scale 2: pi), and zero beyond the image (fov 60 along x, a 1 x 1 texture:
+    // the image is |x|, |y| < tan 30 on that plane). Every next-event sample is the projector's
+    // (one emitter), a delta in position at the pinhole.
+    const Scene scene = test::scene_from_xml(R"(
+        <emitter type="projector"><rgb name="irradiance" value="0.5"/><float name="scale" value="2"/>
+            <float name="fov" value="60"/>
+            <transform name="to_world"><lookat origin="1, 2, 3" target="1, 2, 4" up="0, 1, 0"/></transform></emitter>
+        <shape type="rectangle"/>)");
+    const float half = std::tan(degrees_to_radians(30.f));
+    for (const float x : {-0.9f, -0.5f, 0.f, 0.3f, 0.95f})
+        for (const float y : {-0.9f, 0.f, 0.6f}) {
+            const Vec3f p(1.f + x * half, 2.f + y * half, 4.f);
+            const EmitterSample s = scene.sample_emitter(p, 0.5f, {0.5f, 0.5f});
+            ASSERT_TRUE(s.valid()) << x << " " << y;
+            EXPECT_TRUE(s.delta);
+            EXPECT_NEAR((s.p - Vec3f(1.f, 2.f, 3.f)).norm(), 0.f, 1e-6f);
+            EXPECT_NEAR(s.radiance[0] * std::abs(s.wi.z()), kPi, 1e-4f * kPi) << x << " " << y;
+        }
+    EXPECT_FALSE(scene.sample_emitter(Vec3f(1.f + 1.1f * half, 2.f, 4.f), 0.5f, {}).valid());
+    EXPECT_FALSE(scene.sample_emitter(Vec3f(1.f, 2.f, 2.f), 0.5f, {}).valid());  // behind it
+
+    // The texture as Mitsuba's perspective projection maps it: uv (0, 0) at the image's top
+    // left, seen along the axis with up +y and left = cross(up, axis) = world +x here. A
+    // checkerboard's color0 (same halves) lies top-left and bottom-right.
+    const Scene checks = test::scene_from_xml(R"(
+        <emitter type="projector"><float name="fov" value="60"/>
+            <texture name="irradiance" type="checkerboard"><rgb name="color0" value="1"/><rgb name="color1" value="0.25"/></texture>
+            <transform name="to_world"><lookat origin="1, 2, 3" target="1, 2, 4" up="0, 1, 0"/></transform></emitter>
+        <shape type="rectangle"/>)");
+    const auto irradiance_at = [&](float left, float up) {
+        const EmitterSample s = checks.sample_emitter(
+            Vec3f(1.f + left * half, 2.f + up * half, 4.f), 0.5f, {0.5f, 0.5f});
+        return s.radiance[0] * std::abs(s.wi.z()) / kPi;
+    };
+    EXPECT_NEAR(irradiance_at(0.5f, 0.5f), 1.f, 1e-4f);
+    EXPECT_NEAR(irradiance_at(-0.5f, -0.5f), 1.f, 1e-4f);
+    EXPECT_NEAR(irradiance_at(-0.5f, 0.5f), 0.25f, 1e-4f);
+    EXPECT_NEAR(irradiance_at(0.5f, -0.5f), 0.25f, 1e-4f);
+}
+
 TEST(SceneEmitters, RejectsInvalidEmitterParameters) {
     EXPECT_THROW(
         test::scene_from_xml(R"(<emitter type="spot"><float name="cutoff_angle" value="10"/>
