@@ -100,8 +100,10 @@ void shift_light_sample(const Scene& scene, const PathVertex& x, PathVertex& y) 
         ly.distance = std::sqrt(dist2);
         ly.wi = d / ly.distance;
         if (lx.delta) {
-            // Point light: radiance falls off as 1/d^2; the pdf is the discrete choice.
-            ly.radiance = lx.radiance * (lx.distance * lx.distance / dist2);
+            // A light at a point: its intensity towards y over the squared distance (a spot's
+            // falloff and a projector's or textured spot's image depend on the direction); the
+            // pdf is the discrete choice.
+            ly.radiance = scene.delta_position_radiance(lx.emitter, -ly.wi, dist2);
         } else {
             const float cos_x = -lx.n_geometric.dot(lx.wi);
             const float cos_y = -lx.n_geometric.dot(ly.wi);

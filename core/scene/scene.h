@@ -216,6 +216,13 @@ class Scene {
     bool has_environment() const { return !infinite_emitters_.empty(); }
     /// Probability that sample_emitter chooses emitter `index` (proportional to its estimated
     /// power), for MIS weights of other samplers.
+    /// Radiance arriving from delta-position emitter `index` (point, spot, projector) at
+    /// distance sqrt(dist2) along the unit direction `w` leaving it: its intensity towards w
+    /// over dist2. For shifted next-event samples, which keep the light's position but see it
+    /// along another direction.
+    Rgb delta_position_radiance(int index, const Vec3f& w, float dist2) const {
+        return delta_intensity_towards(emitters_[static_cast<std::size_t>(index)], w) / dist2;
+    }
     float emitter_selection_pmf(int index) const {
         return emitter_selection_.pmf(static_cast<std::size_t>(index));
     }
