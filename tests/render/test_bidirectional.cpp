@@ -50,13 +50,18 @@ std::string write_smooth_sphere_obj(const std::string& test) {
     return path;
 }
 
-std::string open_scene_xml(const std::string& obj_path) {
+/// The camera, a grey floor and a grey back wall that the open scenes below share.
+std::string floor_and_wall_xml() {
     return test::sensor_xml(24, 45.f, "0, 1.5, 5") + R"(
         <bsdf type="diffuse" id="grey"><rgb name="reflectance" value="0.6, 0.5, 0.4"/></bsdf>
         <shape type="rectangle"><transform name="to_world"><scale value="3"/><rotate x="1" angle="-90"/>
             <translate y="-1"/></transform><ref id="grey"/></shape>
         <shape type="rectangle"><transform name="to_world"><scale value="3"/><translate z="-2"/></transform>
-            <ref id="grey"/></shape>
+            <ref id="grey"/></shape>)";
+}
+
+std::string open_scene_xml(const std::string& obj_path) {
+    return floor_and_wall_xml() + R"(
         <shape type="obj"><string name="filename" value=")" +
            obj_path +
            R"("/><transform name="to_world"><scale value="0.7"/><translate y="-0.2"/></transform>
@@ -324,12 +329,7 @@ TEST(Bdpt, ConvergesToThePathTracerWithDeltaLightsEnvironmentAndShadingNormals) 
 /// checkerboard and a spot whose beam carries another (their emission sampled through the
 /// projector's pixels and the spot's cone).
 std::string textured_lights_xml() {
-    return test::sensor_xml(24, 45.f, "0, 1.5, 5") + R"(
-        <bsdf type="diffuse" id="grey"><rgb name="reflectance" value="0.6, 0.5, 0.4"/></bsdf>
-        <shape type="rectangle"><transform name="to_world"><scale value="3"/><rotate x="1" angle="-90"/>
-            <translate y="-1"/></transform><ref id="grey"/></shape>
-        <shape type="rectangle"><transform name="to_world"><scale value="3"/><translate z="-2"/></transform>
-            <ref id="grey"/></shape>
+    return floor_and_wall_xml() + R"(
         <shape type="sphere"><point name="center" value="0.3, -0.4, -0.5"/><float name="radius" value="0.6"/>
             <bsdf type="diffuse"><rgb name="reflectance" value="0.3, 0.7, 0.5"/></bsdf></shape>
         <emitter type="projector"><float name="fov" value="50"/><float name="scale" value="3"/>
