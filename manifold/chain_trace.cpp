@@ -120,6 +120,9 @@ ChainOutcome project_chain(const Scene& scene, const SpecularChain& like, const 
 }
 
 std::optional<double> transmission_eta(const Bsdf& bsdf) {
+    // A mask's or blend's transmission may be its null lobe or a nested model's: the vertex
+    // alone does not say which, so a chain through one is not walked.
+    if (bsdf.is_composite()) return std::nullopt;
     if (const auto* dielectric = std::get_if<DielectricBsdf>(&bsdf.front()))
         return static_cast<double>(dielectric->eta);
     if (const auto* rough = std::get_if<RoughDielectricBsdf>(&bsdf.front()))

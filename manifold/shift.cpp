@@ -335,7 +335,10 @@ ShiftStatus copy_half_vector(const Scene& scene, const Path& base, std::size_t k
     // Indices on the incident (wo) and transmitted sides; 1 and 1 for reflection.
     float n_o = 1.f, n_t = 1.f;
     if (x.transmission) {
-        const auto* model = std::get_if<RoughDielectricBsdf>(&scene.bsdf_of(x.si).front());
+        const Bsdf& bsdf = scene.bsdf_of(x.si);
+        // Composites (mask, blend) hide which component refracted: no half vector to copy.
+        const auto* model =
+            bsdf.is_composite() ? nullptr : std::get_if<RoughDielectricBsdf>(&bsdf.front());
         if (!model) return ShiftStatus::LobeChanged;
         (wo_x.z() > 0.f ? n_t : n_o) = model->eta;
     }

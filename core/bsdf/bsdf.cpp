@@ -195,6 +195,83 @@ Bsdf Bsdf::two_sided(BsdfModel front, std::optional<BsdfModel> back) {
     return b;
 }
 
+struct Bsdf::Composite {
+    enum class Kind { Mask, Blend };
+    Kind kind = Kind::Mask;
+    /// Mask: the opacity (probability of the nested BSDF); blend: the second's probability.
+    /// Clamped to [0, 1] where evaluated, as Mitsuba 3's mask and blendbsdf do.
+    FloatTexture weight;
+    Bsdf first;   // mask: the nested BSDF
+    Bsdf second;  // blend only
+
+    float weight_at(const Vec2f& uv) const { return std::clamp(weight.eval(uv), 0.f, 1.f); }
+    bool mask() const { return kind == Kind::Mask; }
+};
+
+Bsdf Bsdf::mask(FloatTexture opacity, Bsdf nested) {
+    Bsdf b;
+    b.composite_ = std::make_shared<const Composite>(
+        Composite{Composite::Kind::Mask, std::move(opacity), std::move(nested), Bsdf{}});
+    return b;
+}
+
+Bsdf Bsdf::null() {
+    return mask(FloatTexture(0.f), Bsdf{});
+}
+
+Bsdf Bsdf::blend(FloatTexture weight, Bsdf first, Bsdf second) {
+    Bsdf b;
+    b.composite_ = std::make_shared<const Composite>(
+        Composite{Composite::Kind::Blend, std::move(weight), std::move(first), std::move(second)});
+    return b;
+}
+
+BsdfSample Bsdf::sample_composite(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
+                                  TransportMode mode) const {
+    const Composite& c = *composite_;
+    const float w = c.weight_at(uv);
+    BsdfSample s;
+    if (c.mask()) {
+        if (u_lobe >= w) {
+            // The null lobe: straight through, no change of medium, the selection probability
+            // 1 - opacity as the delta lobe's probability (weight (1 - opacity) / (1 - opacity)).
+            s.wi = -wo;
+            s.pdf_solid_angle = 1.f - w;
+            s.weight = Rgb::Ones();
+            s.delta = true;
+            s.transmission = true;
+            s.sampled_class = RoughnessClass::Delta;
+            return s;
+        }
+        // The random number is reused for the nested BSDF's own lobe choice (Mitsuba 3 does the
+        // same), rescaled to [0, 1).
+        s = c.first.sample(uv, wo, u_lobe / w, u, mode);
+        // f and pdf both carry the opacity: the weight f / pdf is the nested one.
+        s.pdf_solid_angle *= w;
+        if (!s.valid()) s = BsdfSample{};
+        return s;
+    }
+    // Blend: u_lobe < w picks the second component (Mitsuba 3's blendbsdf convention).
+    const bool second = u_lobe < w;
+    const float probability = second ? w : 1.f - w;
+    const float u_rescaled = second ? u_lobe / w : (u_lobe - w) / (1.f - w);
+    s = (second ? c.second : c.first).sample(uv, wo, std::min(u_rescaled, 0x1.fffffep-1f), u, mode);
+    if (!s.valid()) return s;
+    if (s.delta) {
+        s.pdf_solid_angle *= probability;
+        return s;
+    }
+    // The density of the direction is the mixture's whichever component drew it.
+    s.pdf_solid_angle = pdf(uv, wo, s.wi);
+    const Rgb f = eval(uv, wo, s.wi, mode);
+    if (!(s.pdf_solid_angle > 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
+    s.weight = f / s.pdf_solid_angle;
+    return s;
+}
+
 const BsdfModel& Bsdf::model_for(const Vec3f& wo, Vec3f* wo_query, bool* flipped) const {
     *flipped = two_sided_ && cos_theta(wo) < 0.f;
     *wo_query = *flipped ? flip_z(wo) : wo;
@@ -203,6 +280,15 @@ const BsdfModel& Bsdf::model_for(const Vec3f& wo, Vec3f* wo_query, bool* flipped
 }
 
 Rgb Bsdf::eval(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi, TransportMode mode) const {
+    if (composite_) {
+        const Composite& c = *composite_;
+        const float w = c.weight_at(uv);
+        if (c.mask()) return w > 0.f ? Rgb(w * c.first.eval(uv, wo, wi, mode)) : Rgb::Zero();
+        Rgb f = Rgb::Zero();
+        if (w < 1.f) f += (1.f - w) * c.first.eval(uv, wo, wi, mode);
+        if (w > 0.f) f += w * c.second.eval(uv, wo, wi, mode);
+        return f;
+    }
     Vec3f wo_q;
     bool flipped;
     const BsdfModel& m = model_for(wo, &wo_q, &flipped);
@@ -213,6 +299,15 @@ Rgb Bsdf::eval(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi, TransportMode 
 }
 
 float Bsdf::pdf(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi) const {
+    if (composite_) {
+        const Composite& c = *composite_;
+        const float w = c.weight_at(uv);
+        if (c.mask()) return w > 0.f ? w * c.first.pdf(uv, wo, wi) : 0.f;
+        float p = 0.f;
+        if (w < 1.f) p += (1.f - w) * c.first.pdf(uv, wo, wi);
+        if (w > 0.f) p += w * c.second.pdf(uv, wo, wi);
+        return p;
+    }
     Vec3f wo_q;
     bool flipped;
     const BsdfModel& m = model_for(wo, &wo_q, &flipped);
@@ -224,6 +319,7 @@ float Bsdf::pdf(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi) const {
 
 BsdfSample Bsdf::sample(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
                         TransportMode mode) const {
+    if (composite_) return sample_composite(uv, wo, u_lobe, u, mode);
     Vec3f wo_q;
     bool flipped;
     const BsdfModel& m = model_for(wo, &wo_q, &flipped);
@@ -238,12 +334,28 @@ BsdfSample Bsdf::sample(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Ve
 }
 
 bool Bsdf::is_delta() const {
+    if (composite_) {
+        const Composite& c = *composite_;
+        if (c.mask()) return c.weight.max_value() <= 0.f || c.first.is_delta();
+        return c.first.is_delta() && c.second.is_delta();
+    }
     return model_is_delta(front_) && (!back_ || model_is_delta(*back_));
 }
 bool Bsdf::has_transmission() const {
+    if (composite_)
+        return composite_->mask() || composite_->first.has_transmission() ||
+               composite_->second.has_transmission();
     return model_transmits(front_) || (back_ && model_transmits(*back_));
 }
 RoughnessClass Bsdf::roughness_class() const {
+    if (composite_) {
+        const Composite& c = *composite_;
+        if (c.mask())
+            return c.weight.max_value() <= 0.f ? RoughnessClass::Delta : c.first.roughness_class();
+        if (c.weight.max_value() <= 0.f) return c.first.roughness_class();
+        if (c.weight.min_value() >= 1.f) return c.second.roughness_class();
+        return std::min(c.first.roughness_class(), c.second.roughness_class());
+    }
     const auto cls = [](const BsdfModel& m) {
         return std::visit([](const auto& model) { return detail::model_class(model); }, m);
     };
@@ -252,6 +364,14 @@ RoughnessClass Bsdf::roughness_class() const {
     return c;
 }
 RoughnessClass Bsdf::roughness_class_at(const Vec2f& uv) const {
+    if (composite_) {
+        const Composite& c = *composite_;
+        const float w = c.weight_at(uv);
+        if (c.mask()) return w <= 0.f ? RoughnessClass::Delta : c.first.roughness_class_at(uv);
+        if (w <= 0.f) return c.first.roughness_class_at(uv);
+        if (w >= 1.f) return c.second.roughness_class_at(uv);
+        return std::min(c.first.roughness_class_at(uv), c.second.roughness_class_at(uv));
+    }
     const auto cls = [&](const BsdfModel& m) {
         return std::visit([&](const auto& model) { return detail::model_class_at(model, uv); }, m);
     };
@@ -260,6 +380,20 @@ RoughnessClass Bsdf::roughness_class_at(const Vec2f& uv) const {
     return c;
 }
 BsdfLobes Bsdf::lobes() const {
+    if (composite_) {
+        const Composite& c = *composite_;
+        if (c.mask()) {
+            BsdfLobes l = c.weight.max_value() > 0.f ? c.first.lobes() : BsdfLobes{};
+            BsdfLobes null_lobe;
+            null_lobe.delta_transmission = true;
+            null_lobe.sharpest_class = RoughnessClass::Delta;
+            l |= null_lobe;
+            return l;
+        }
+        BsdfLobes l = c.first.lobes();
+        l |= c.second.lobes();
+        return l;
+    }
     BsdfLobes l = model_lobes(front_);
     if (back_) l |= model_lobes(*back_);
     return l;

@@ -185,11 +185,26 @@ using BsdfModel =
 /// directions of back-side queries onto the front and uses `back` (or the front model when
 /// `back` is empty), as Mitsuba's `twosided` does. One-sided non-transmissive models are black
 /// from behind.
+///
+/// A Bsdf can also be a stochastic mixture of other Bsdfs (is_composite()):
+///  - Mitsuba's `mask`: with probability 1 - opacity(uv) the ray passes straight through (a
+///    null lobe: delta transmission, wi = -wo, eta 1, weight 1), otherwise the nested BSDF
+///    scatters; f = opacity f_nested. `null` is a mask of opacity 0.
+///  - Mitsuba's `blendbsdf`: f = (1 - w(uv)) f_first + w(uv) f_second, sampled by choosing a
+///    component with those probabilities; a non-delta sample is weighed by the mixture's
+///    f / pdf (one-sample MIS over the components, Veach 1997 sec. 9.2.4), a delta one by its
+///    component's weight, its pdf being the lobe probability times the selection probability.
+/// front(), back() and is_two_sided() describe a leaf only; callers that look inside the model
+/// (the path tracer's lanes, the manifold walk) treat composites as opaque.
 class Bsdf {
   public:
     Bsdf() = default;
     explicit Bsdf(BsdfModel front) : front_(std::move(front)) {}
     static Bsdf two_sided(BsdfModel front, std::optional<BsdfModel> back);
+    static Bsdf mask(FloatTexture opacity, Bsdf nested);
+    static Bsdf null();
+    static Bsdf blend(FloatTexture weight, Bsdf first, Bsdf second);
+    bool is_composite() const { return composite_ != nullptr; }
 
     Rgb eval(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi,
              TransportMode mode = TransportMode::Radiance) const;
@@ -216,11 +231,15 @@ class Bsdf {
     const BsdfModel* back() const { return back_ ? &*back_ : nullptr; }
 
   private:
+    struct Composite;
     const BsdfModel& model_for(const Vec3f& wo, Vec3f* wo_flip, bool* flipped) const;
+    BsdfSample sample_composite(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
+                                TransportMode mode) const;
 
     BsdfModel front_;
     std::optional<BsdfModel> back_;
     bool two_sided_ = false;
+    std::shared_ptr<const Composite> composite_;  // immutable, shared by copies
 };
 
 /// Mitsuba's named IORs ("bk7", "water", "air", ...); nullopt for unknown names.

@@ -166,13 +166,92 @@ PolygonSoup read_obj(std::istream& stream) {
     return soup;
 }
 
+/// The whitespace-separated tokens of one OFF line, comments (# to the end) removed.
+std::vector<std::string_view> off_tokens(std::string_view line) {
+    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos)
+        line = line.substr(0, hash);
+    std::vector<std::string_view> tokens;
+    std::size_t i = 0;
+    while (i < line.size()) {
+        while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i])) != 0) ++i;
+        const std::size_t start = i;
+        while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i])) == 0) ++i;
+        if (i > start) tokens.push_back(line.substr(start, i - start));
+    }
+    return tokens;
+}
+
+std::optional<long long> off_integer(std::string_view token) {
+    long long value = 0;
+    const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
+    if (error != std::errc{} || end != token.data() + token.size()) return std::nullopt;
+    return value;
+}
+
+/// CGAL's OFF reader trusts the counts it reads: a face of -2^31 vertices ends in
+/// vector::_M_default_append, one of 10^11 in an 800 GB allocation. The header's counts and
+/// every face's vertex count are checked here first, against the file's size and the vertex
+/// count, with the line of the first bad one.
+void check_off_counts(const std::string& text) {
+    std::vector<std::vector<std::string_view>> lines;  // non-empty lines only
+    std::vector<int> line_numbers;
+    std::size_t start = 0;
+    for (int number = 1; start <= text.size(); ++number) {
+        std::size_t end = text.find('\n', start);
+        if (end == std::string::npos) end = text.size();
+        std::vector<std::string_view> tokens =
+            off_tokens(std::string_view(text).substr(start, end - start));
+        if (!tokens.empty()) {
+            lines.push_back(std::move(tokens));
+            line_numbers.push_back(number);
+        }
+        start = end + 1;
+    }
+    const auto fail = [&](std::size_t line, const std::string& why) {
+        const int number = line < line_numbers.size() ? line_numbers[line] : 0;
+        throw MeshReadError{"line " + std::to_string(number) + ": " + why};
+    };
+    if (lines.empty() || lines[0][0].size() < 3 ||
+        lines[0][0].substr(lines[0][0].size() - 3) != "OFF")
+        throw MeshReadError{"not an OFF file (no OFF header)"};
+    for (const std::string_view token : lines[0])
+        if (token == "BINARY") fail(0, "binary OFF files are not supported");
+    // The counts follow the header, on its line or the next.
+    std::size_t line = lines[0].size() > 1 ? 0 : 1;
+    if (line >= lines.size()) fail(line, "missing vertex and face counts");
+    const std::vector<std::string_view>& counts = lines[line];
+    const std::size_t first = line == 0 ? 1 : 0;
+    if (counts.size() < first + 2) fail(line, "expected the vertex and face counts");
+    const std::optional<long long> vertices = off_integer(counts[first]);
+    const std::optional<long long> faces = off_integer(counts[first + 1]);
+    // Every vertex and face takes a line of its own: a count beyond the lines left is a lie.
+    const auto lines_left = static_cast<long long>(lines.size() - line - 1);
+    if (!vertices || *vertices < 0 || *vertices > lines_left)
+        fail(line, "bad vertex count (not an integer in [0, lines in the file])");
+    if (!faces || *faces < 0 || *faces > lines_left - *vertices)
+        fail(line, "bad face count (not an integer in [0, lines after the vertices])");
+    const std::size_t face_start = line + 1 + static_cast<std::size_t>(*vertices);
+    for (std::size_t f = 0; f < static_cast<std::size_t>(*faces); ++f) {
+        const std::vector<std::string_view>& face = lines[face_start + f];
+        const std::optional<long long> n = off_integer(face[0]);
+        if (!n || *n < 3 || *n > *vertices || static_cast<long long>(face.size()) < 1 + *n)
+            fail(face_start + f,
+                 "bad face: its vertex count must be an integer from 3 to the number of "
+                 "vertices, followed by that many indices");
+    }
+}
+
 PolygonSoup read_off(std::istream& stream) {
+    const std::string text{std::istreambuf_iterator<char>(stream),
+                           std::istreambuf_iterator<char>()};
+    check_off_counts(text);
+    std::istringstream checked(text);
     std::vector<CgalPoint> points;
     std::vector<Kernel::Vector_3> normals;
     std::vector<Kernel::Point_2> uvs;
     PolygonSoup soup;
     const bool ok = CGAL::IO::read_OFF(
-        stream, points, soup.polygons,
+        checked, points, soup.polygons,
         CGAL::parameters::vertex_normal_output_iterator(std::back_inserter(normals))
             .vertex_texture_output_iterator(std::back_inserter(uvs))
             .verbose(false));

@@ -42,7 +42,8 @@ DiffuseLanes::DiffuseLanes(const Scene& scene) : scene_(&scene), arrays_(1) {
     for (const Bsdf& bsdf : scene.bsdfs()) {
         Diffuse d;
         d.two_sided = bsdf.is_two_sided();
-        d.handled = constant_diffuse(bsdf.front(), d.front);
+        // A mask or blend is not a leaf model: its front() says nothing about it.
+        d.handled = !bsdf.is_composite() && constant_diffuse(bsdf.front(), d.front);
         d.back = d.front;
         if (bsdf.back()) d.handled = d.handled && constant_diffuse(*bsdf.back(), d.back);
         diffuse_.push_back(d);

@@ -300,6 +300,16 @@ struct Builder {
         bool has(const std::string& name) {
             return props_.has(name) || find_unmarked(name) != nullptr;
         }
+        /// The nested `<bsdf>` children (a mask's or blend's components), in file order.
+        std::vector<const ChildRef*> nested_bsdfs() {
+            std::vector<const ChildRef*> out;
+            for (std::size_t i = 0; i < obj_.children.size(); ++i)
+                if (builder_.object(obj_.children[i].object).tag == "bsdf") {
+                    used_.insert(i);
+                    out.push_back(&obj_.children[i]);
+                }
+            return out;
+        }
         /// Reports nested elements that no parameter asked for.
         void check_all_used() const {
             for (std::size_t i = 0; i < obj_.children.size(); ++i)
@@ -810,7 +820,7 @@ struct Builder {
             diagnostics.unknown(obj.loc, "unknown BSDF '" + obj.type +
                                              "' (supported: diffuse, dielectric, thindielectric, "
                                              "roughdielectric, conductor, roughconductor, plastic, "
-                                             "roughplastic, twosided)");
+                                             "roughplastic, twosided, mask, blendbsdf, null)");
             model = DiffuseBsdf{};
         }
         props.check_all_used();
@@ -818,7 +828,35 @@ struct Builder {
         return model;
     }
 
+    /// Mitsuba's `mask`, `blendbsdf` and `null` (see Bsdf's composites).
+    Bsdf build_composite_bsdf(const ObjectDesc& obj) {
+        Properties props(obj, diagnostics);
+        TextureParams textures(*this, obj, props);
+        std::vector<Bsdf> nested;
+        for (const ChildRef* child : textures.nested_bsdfs())
+            nested.push_back(build_bsdf(object(child->object)));
+        Bsdf bsdf;
+        if (obj.type == "null") {
+            if (!nested.empty()) throw InputError(obj.loc, "null takes no nested BSDF");
+            bsdf = Bsdf::null();
+        } else if (obj.type == "mask") {
+            if (nested.size() != 1) throw InputError(obj.loc, "mask expects one nested BSDF");
+            bsdf = Bsdf::mask(textures.scalar("opacity", 0.5f), std::move(nested[0]));
+        } else {
+            if (nested.size() != 2) throw InputError(obj.loc, "blendbsdf expects two nested BSDFs");
+            if (!textures.has("weight"))
+                throw InputError(obj.loc, "blendbsdf needs a 'weight' (a float or a texture)");
+            bsdf = Bsdf::blend(textures.scalar("weight", 0.5f), std::move(nested[0]),
+                               std::move(nested[1]));
+        }
+        props.check_all_used();
+        textures.check_all_used();
+        return bsdf;
+    }
+
     Bsdf build_bsdf(const ObjectDesc& obj) {
+        if (obj.type == "mask" || obj.type == "blendbsdf" || obj.type == "null")
+            return build_composite_bsdf(obj);
         if (obj.type != "twosided") return Bsdf(build_bsdf_model(obj));
         Properties(obj, diagnostics).check_all_used();
         std::vector<BsdfModel> nested;
@@ -826,6 +864,9 @@ struct Builder {
             const ObjectDesc& c = object(child.object);
             if (c.tag != "bsdf") throw InputError(c.loc, "twosided expects nested <bsdf> elements");
             if (c.type == "twosided") throw InputError(c.loc, "twosided cannot nest twosided");
+            if (c.type == "mask" || c.type == "blendbsdf" || c.type == "null")
+                throw InputError(c.loc, "twosided cannot wrap " + c.type +
+                                            " (write the twosided inside the " + c.type + ")");
             nested.push_back(build_bsdf_model(c));
         }
         if (nested.empty() || nested.size() > 2)

@@ -194,6 +194,84 @@ TEST(ConductorBsdf, RealArithmeticFresnelIsTheComplexFormula) {
     std::printf("largest |F - F_complex|: %.3g\n", worst);
 }
 
+TEST(MaskBsdf, PassesStraightThroughWithTheProbabilityOfTransparency) {
+    // Opacity from a checkerboard: 0.25 on one square, 0.9 on the other (Mitsuba's scalar
+    // checkerboard swaps the colours; which square is which does not matter here). Seed 3,
+    // 20000 draws per uv: the null lobe's frequency is 1 - opacity within 4 binomial standard
+    // errors (<= 0.0123); each null sample goes exactly straight on with weight 1.
+    CheckerboardTexture checker;
+    checker.color0 = Rgb::Constant(0.25f);
+    checker.color1 = Rgb::Constant(0.9f);
+    const FloatTexture opacity{RgbTexture(TextureModel(checker))};
+    const Bsdf nested(DiffuseBsdf{Rgb(0.5f, 0.6f, 0.7f)});
+    const Bsdf mask = Bsdf::mask(opacity, nested);
+    EXPECT_TRUE(mask.has_transmission());
+    EXPECT_FALSE(mask.is_delta());
+    EXPECT_TRUE(mask.lobes().delta_transmission);
+    Pcg32 rng(3, 1);
+    for (const Vec2f& uv : {Vec2f(0.25f, 0.25f), Vec2f(0.75f, 0.25f)}) {
+        const float alpha = opacity.eval(uv);
+        const Vec3f wo = direction_at(40.f, 75.f);
+        const int n = 20000;
+        int null_count = 0;
+        for (int i = 0; i < n; ++i) {
+            const BsdfSample s =
+                mask.sample(uv, wo, rng.next_float(), {rng.next_float(), rng.next_float()});
+            ASSERT_TRUE(s.valid());
+            if (!s.delta) continue;
+            ++null_count;
+            EXPECT_TRUE(s.transmission);
+            EXPECT_EQ(s.wi, Vec3f(-wo));
+            EXPECT_EQ(s.weight[1], 1.f);
+            EXPECT_EQ(s.eta, 1.f);
+            EXPECT_FLOAT_EQ(s.pdf_solid_angle, 1.f - alpha);
+        }
+        const double expected = 1.0 - alpha;
+        EXPECT_NEAR(null_count / static_cast<double>(n), expected,
+                    4.0 * std::sqrt(expected * (1.0 - expected) / n))
+            << "opacity " << alpha;
+        const Vec3f wi = direction_at(20.f, 200.f);
+        EXPECT_FLOAT_EQ(mask.eval(uv, wo, wi)[2], alpha * nested.eval(uv, wo, wi)[2]);
+        EXPECT_FLOAT_EQ(mask.pdf(uv, wo, wi), alpha * nested.pdf(uv, wo, wi));
+    }
+    // `null` passes everything: a delta surface with nothing to evaluate.
+    const Bsdf null = Bsdf::null();
+    EXPECT_TRUE(null.is_delta());
+    const BsdfSample s = null.sample(kUv, direction_at(70.f), 0.3f, {0.2f, 0.9f});
+    EXPECT_EQ(s.wi, Vec3f(-direction_at(70.f)));
+    EXPECT_EQ(s.pdf_solid_angle, 1.f);
+    EXPECT_TRUE(is_black(null.eval(kUv, direction_at(70.f), direction_at(10.f))));
+}
+
+TEST(BlendBsdf, EvaluatesTheWeightedSumOfItsComponentsAndTheirDeltaLobesAtTheirShare) {
+    // f = (1 - w) f_first + w f_second (Mitsuba 3's blendbsdf), pdf likewise; a mirror's
+    // sample keeps its weight and carries its selection probability w as its lobe probability.
+    const Bsdf first(DiffuseBsdf{Rgb(0.5f, 0.6f, 0.7f)});
+    const Bsdf second = Bsdf::two_sided(DiffuseBsdf{Rgb(0.9f, 0.1f, 0.3f)}, std::nullopt);
+    const Bsdf blend = Bsdf::blend(0.3f, first, second);
+    const Vec3f wo = direction_at(35.f), wi = direction_at(60.f, 250.f);
+    for (int c = 0; c < 3; ++c)
+        EXPECT_FLOAT_EQ(blend.eval(kUv, wo, wi)[c],
+                        0.7f * first.eval(kUv, wo, wi)[c] + 0.3f * second.eval(kUv, wo, wi)[c]);
+    EXPECT_FLOAT_EQ(blend.pdf(kUv, wo, wi),
+                    0.7f * first.pdf(kUv, wo, wi) + 0.3f * second.pdf(kUv, wo, wi));
+    // From behind only the two-sided component answers, at its share.
+    const Vec3f wo_back = -direction_at(35.f), wi_back = -direction_at(60.f, 250.f);
+    EXPECT_FLOAT_EQ(blend.eval(kUv, wo_back, wi_back)[0],
+                    0.3f * second.eval(kUv, wo_back, wi_back)[0]);
+
+    const Bsdf mirror(ConductorBsdf{});
+    const Bsdf with_mirror = Bsdf::blend(0.25f, first, mirror);
+    const BsdfSample s = with_mirror.sample(kUv, wo, 0.1f, {0.4f, 0.6f});  // u < w: the mirror
+    ASSERT_TRUE(s.valid());
+    EXPECT_TRUE(s.delta);
+    EXPECT_FLOAT_EQ(s.pdf_solid_angle, 0.25f);
+    EXPECT_FLOAT_EQ(s.weight[0], mirror.sample(kUv, wo, 0.4f, {0.4f, 0.6f}).weight[0]);
+    EXPECT_TRUE(with_mirror.lobes().delta_reflection && with_mirror.lobes().diffuse_reflection);
+    EXPECT_EQ(with_mirror.roughness_class(), RoughnessClass::Diffuse);
+    EXPECT_FALSE(with_mirror.is_delta());
+}
+
 TEST(Bsdf, NoNanOrInfForDegenerateDirections) {
     std::vector<Bsdf> bsdfs = {
         Bsdf(DiffuseBsdf{Rgb::Constant(0.5f)}),
@@ -202,7 +280,10 @@ TEST(Bsdf, NoNanOrInfForDegenerateDirections) {
         Bsdf(DielectricBsdf{1.f / 1.5f, Rgb::Ones(), Rgb::Ones()}),
         Bsdf(ThinDielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()}),
         Bsdf(ConductorBsdf{Rgb(0.2f, 0.9f, 1.1f), Rgb(3.9f, 2.4f, 2.1f), false, Rgb::Ones()}),
-        Bsdf::two_sided(DiffuseBsdf{Rgb::Constant(0.5f)}, std::nullopt)};
+        Bsdf::two_sided(DiffuseBsdf{Rgb::Constant(0.5f)}, std::nullopt),
+        Bsdf::mask(0.5f, Bsdf(DielectricBsdf{1.5f, Rgb::Ones(), Rgb::Ones()})),
+        Bsdf::blend(0.5f, Bsdf(DiffuseBsdf{Rgb::Constant(0.5f)}), Bsdf(ConductorBsdf{})),
+        Bsdf::null()};
     const std::vector<Vec3f> directions = {
         Vec3f::UnitZ(),        -Vec3f::UnitZ(),        Vec3f::UnitX(),
         direction_at(89.999f), -direction_at(89.999f), Vec3f(1.f, 0.f, 1e-30f).normalized(),

@@ -456,6 +456,47 @@ TEST(RoughPlasticBsdf, BeckmannSamplesMatchPdf) {
     expect_all_pass(rough_plastic_cases(MicrofacetType::Beckmann));
 }
 
+// --- Mask and blend (Mitsuba's mask and blendbsdf)
+// ------------------------------------------------
+
+TEST(MaskBsdf, NestedSamplesMatchPdfAndTheNullLobeHasTheRestOfTheProbability) {
+    // The null lobe is a delta: as a plastic's coat, its samples count as failures, expected
+    // with probability 1 - int pdf = 1 - opacity int pdf_nested. An opacity left out of pdf()
+    // or of the sample's choice fails both the shape and that share.
+    std::vector<Chi2Case> cases;
+    for (float theta : {0.f, 60.f}) {
+        cases.push_back(
+            make_case(describe("mask(0.35) roughconductor", MicrofacetType::Ggx, 0.3f, 0.3f, theta),
+                      Bsdf::mask(0.35f, rough_conductor(MicrofacetType::Ggx, 0.3f, 0.3f)),
+                      direction_at(theta), Lobe::All, 0.3f, 0.3f, theta));
+        cases.push_back(
+            {"mask(0.7) plastic theta=" + std::to_string(theta),
+             Bsdf::mask(0.7f, Bsdf(make_plastic(1.49f, Rgb(0.3f, 0.5f, 0.7f), Rgb::Ones(), false))),
+             direction_at(theta)});
+    }
+    expect_all_pass(cases);
+}
+
+TEST(BlendBsdf, SamplesMatchTheMixturePdf) {
+    // Two broad lobes (direction space resolves them); and a diffuse blended with a mirror,
+    // whose delta share 0.6 is checked as the failed-sample bin.
+    std::vector<Chi2Case> cases;
+    for (float theta : {0.f, 45.f, 80.f}) {
+        cases.push_back(
+            {"blend(0.3, roughplastic, roughconductor) theta=" + std::to_string(theta),
+             Bsdf::blend(0.3f,
+                         Bsdf(make_rough_plastic(MicrofacetType::Ggx, 0.4f, true, 1.5f,
+                                                 Rgb(0.4f, 0.5f, 0.6f), Rgb::Ones(), false)),
+                         rough_conductor(MicrofacetType::Beckmann, 0.5f, 0.5f)),
+             direction_at(theta)});
+        cases.push_back(
+            {"blend(0.6, diffuse, conductor) theta=" + std::to_string(theta),
+             Bsdf::blend(0.6f, Bsdf(DiffuseBsdf{Rgb(0.5f, 0.6f, 0.7f)}), Bsdf(ConductorBsdf{})),
+             direction_at(theta)});
+    }
+    expect_all_pass(cases);
+}
+
 // --- Weights, reciprocity, scaling law ----------------------------------------------------------
 
 std::vector<std::pair<std::string, Bsdf>> glossy_bsdfs() {
@@ -470,7 +511,16 @@ std::vector<std::pair<std::string, Bsdf>> glossy_bsdfs() {
          rough_dielectric(MicrofacetType::Beckmann, 0.2f, 0.2f, 1.5f, false)},
         {"plastic", Bsdf(make_plastic(1.49f, Rgb(0.3f, 0.5f, 0.7f), Rgb::Ones(), true))},
         {"roughplastic", Bsdf(make_rough_plastic(MicrofacetType::Ggx, 0.2f, true, 1.5f,
-                                                 Rgb(0.3f, 0.5f, 0.7f), Rgb::Ones(), false))}};
+                                                 Rgb(0.3f, 0.5f, 0.7f), Rgb::Ones(), false))},
+        // Two-sided inside: a mask transmits, so half the incident directions come from behind.
+        {"mask(twosided roughconductor)",
+         Bsdf::mask(0.8f, Bsdf::two_sided(rough_conductor(MicrofacetType::Ggx, 0.2f, 0.2f).front(),
+                                          std::nullopt))},
+        {"blend(roughplastic, roughconductor)",
+         Bsdf::blend(0.3f,
+                     Bsdf(make_rough_plastic(MicrofacetType::Ggx, 0.2f, true, 1.5f,
+                                             Rgb(0.3f, 0.5f, 0.7f), Rgb::Ones(), false)),
+                     rough_conductor(MicrofacetType::Beckmann, 0.1f, 0.4f))}};
 }
 
 TEST(MicrofacetBsdfs, SampleWeightEqualsEvalOverPdf) {

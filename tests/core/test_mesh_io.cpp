@@ -462,6 +462,32 @@ TEST(MeshIo, FaceIndexOutOfRangeIsAnInputError) {
     load_error(dir.write("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n"));
 }
 
+TEST(MeshIo, OffCountsThatLieAreInputErrorsWithTheirLine) {
+    // CGAL's reader trusts them: -2^31 vertices in a face ended in "internal error:
+    // vector::_M_default_append", 99999999999 in an 800 GB allocation (an abort under ASan).
+    const TempDir dir;
+    const std::string tri = "0 0 0\n1 0 0\n0 1 0\n";
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"OFF\n3 1 0\n" + tri + "-2147483648 0 1 2\n", "line 6"},
+        {"OFF\n3 1 0\n" + tri + "99999999999 0 1 2\n", "line 6"},
+        {"OFF\n3 1 0\n" + tri + "4 0 1 2\n", "line 6"},  // more than the vertices
+        {"OFF\n3 1 0\n" + tri + "2 0 1\n", "line 6"},
+        {"OFF\n3 1 0\n" + tri + "3 0 1\n", "line 6"},  // fewer indices than it says
+        {"OFF\n99999999999 1 0\n" + tri + "3 0 1 2\n", "line 2"},
+        {"OFF\n3 -1 0\n" + tri, "line 2"},
+        {"OFF\n3 2 0\n" + tri + "3 0 1 2\n", "line 2"},  // a face missing
+        {"OFF BINARY\n", "line 1"}};
+    for (const auto& [text, line] : cases) {
+        const std::string message = load_error(dir.write("bad.off", text));
+        EXPECT_NE(message.find(line), std::string::npos) << text << " -> " << message;
+    }
+    // Comments, blank lines and counts on the header's line are still read.
+    const TriangleMeshData mesh =
+        load_mesh(dir.write("ok.off", "# made here\nOFF 3 1 0\n\n" + tri + "3 0 1 2 # face\n"),
+                  FileLoc{"scene.xml", 1, 1});
+    EXPECT_EQ(mesh.indices.size(), 3u);
+}
+
 TEST(MeshIo, VertexNormalsAreAngleWeighted) {
     // Vertex 0 touches a right-angled triangle facing +z and a 45-degree one facing +x, both of
     // area 1/2: angle weighting gives (pi/4, 0, pi/2) -> (1, 0, 2)/sqrt(5) (area weighting would
