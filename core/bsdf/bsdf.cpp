@@ -196,22 +196,56 @@ Bsdf Bsdf::two_sided(BsdfModel front, std::optional<BsdfModel> back) {
 }
 
 struct Bsdf::Composite {
-    enum class Kind { Mask, Blend };
+    enum class Kind { Mask, Blend, NormalMap };
     Kind kind = Kind::Mask;
     /// Mask: the opacity (probability of the nested BSDF); blend: the second's probability.
     /// Clamped to [0, 1] where evaluated, as Mitsuba 3's mask and blendbsdf do.
     FloatTexture weight;
-    Bsdf first;   // mask: the nested BSDF
+    Bsdf first;   // mask, normal map: the nested BSDF
     Bsdf second;  // blend only
+    // Normal map only.
+    RgbTexture normals;
+    bool flip_invalid_normals = true;
+    bool use_shadowing_function = true;
 
     float weight_at(const Vec2f& uv) const { return std::clamp(weight.eval(uv), 0.f, 1.f); }
     bool mask() const { return kind == Kind::Mask; }
+    bool normal_map() const { return kind == Kind::NormalMap; }
+
+    /// The perturbed frame in local shading coordinates (Mitsuba 3.9's normalmap: tangent
+    /// (1, 0, 0) projected), given the direction towards the camera side.
+    Frame perturbed_frame(const Vec2f& uv, const Vec3f& w_camera) const {
+        Vec3f n = (2.f * normals.eval(uv) - 1.f).matrix();
+        // Flip about the shading normal when the perturbed normal faces away from the side
+        // the camera-side direction is on.
+        if (flip_invalid_normals && cos_theta(w_camera) * w_camera.dot(n) <= 0.f)
+            n = Vec3f(-n.x(), -n.y(), n.z());
+        const float length = n.norm();
+        n = length > 0.f && std::isfinite(length) ? Vec3f(n / length) : Vec3f::UnitZ();
+        return Frame::from_normal_and_tangent(n, Vec3f::UnitX());
+    }
+    /// Conty Estevez et al. 2019, "A microfacet-based shadowing function to solve the bump
+    /// terminator problem" (Ray Tracing Gems, ch. 12): G1 of a GGX-like distribution whose
+    /// alpha^2 is 1/8 of tan^2 of the perturbed normal, towards the light-side direction.
+    float shadowing(const Vec3f& n_perturbed, const Vec3f& w_light) const {
+        if (!use_shadowing_function) return 1.f;
+        const auto tan2 = [](const Vec3f& w) {
+            const float c2 = w.z() * w.z();
+            return std::max(0.f, 1.f - c2) / c2;
+        };
+        const float alpha2 = std::min(0.125f * tan2(n_perturbed), 1.f);
+        const float g = 2.f / (1.f + std::sqrt(1.f + alpha2 * tan2(w_light)));
+        return std::isfinite(g) ? g : 0.f;
+    }
 };
 
 Bsdf Bsdf::mask(FloatTexture opacity, Bsdf nested) {
+    Composite c;
+    c.kind = Composite::Kind::Mask;
+    c.weight = std::move(opacity);
+    c.first = std::move(nested);
     Bsdf b;
-    b.composite_ = std::make_shared<const Composite>(
-        Composite{Composite::Kind::Mask, std::move(opacity), std::move(nested), Bsdf{}});
+    b.composite_ = std::make_shared<const Composite>(std::move(c));
     return b;
 }
 
@@ -219,16 +253,91 @@ Bsdf Bsdf::null() {
     return mask(FloatTexture(0.f), Bsdf{});
 }
 
-Bsdf Bsdf::blend(FloatTexture weight, Bsdf first, Bsdf second) {
+Bsdf Bsdf::normal_map(RgbTexture normals, Bsdf nested, bool flip_invalid_normals,
+                      bool use_shadowing_function) {
+    Composite c;
+    c.kind = Composite::Kind::NormalMap;
+    c.first = std::move(nested);
+    c.normals = std::move(normals);
+    c.flip_invalid_normals = flip_invalid_normals;
+    c.use_shadowing_function = use_shadowing_function;
     Bsdf b;
-    b.composite_ = std::make_shared<const Composite>(
-        Composite{Composite::Kind::Blend, std::move(weight), std::move(first), std::move(second)});
+    b.composite_ = std::make_shared<const Composite>(std::move(c));
+    return b;
+}
+
+namespace {
+
+/// The factor that turns the nested BSDF's adjoint in the perturbed frame into the adjoint of
+/// the normal-mapped BSDF in the shading frame: with the camera-side direction w_c and the
+/// light-side w_l, eval_radiance(w_c, w_l) = f_p(w_c, w_l) |cos_p w_l| S(w_l), the true BSDF is
+/// that over |cos w_l|, and its adjoint times |cos w_c| is f_p(w_c, w_l) |cos_p w_l|
+/// |cos w_c| S(w_l) / |cos w_l|; the nested Importance eval gives f_p(w_c, w_l) |cos_p w_c|.
+float normal_map_adjoint_factor(const Vec3f& w_light, const Vec3f& w_light_perturbed,
+                                const Vec3f& w_camera, const Vec3f& w_camera_perturbed) {
+    const float denominator = abs_cos_theta(w_camera_perturbed) * abs_cos_theta(w_light);
+    const float f = abs_cos_theta(w_light_perturbed) * abs_cos_theta(w_camera) / denominator;
+    return denominator > 0.f && std::isfinite(f) ? f : 0.f;
+}
+
+}  // namespace
+
+// Sampling draws in the frame of the direction it starts from (wo), so that pdf(wo, wi), which
+// knows no transport mode, is the density of either mode's sample. eval uses the frame of the
+// camera-side direction, which decides the flip (wo in Radiance mode, wi in Importance mode):
+// where the two frames differ (a flip seen from one side only, at grazing angles on steep
+// normals) an Importance sample is weighed by eval / pdf, and a delta one is dropped.
+BsdfSample Bsdf::sample_normal_mapped(const Vec2f& uv, const Vec3f& wo, float u_lobe,
+                                      const Vec2f& u, TransportMode mode) const {
+    const Composite& c = *composite_;
+    const Frame frame = c.perturbed_frame(uv, wo);
+    BsdfSample s = c.first.sample(uv, frame.to_local(wo), u_lobe, u, mode);
+    if (!s.valid()) return s;
+    const Vec3f wi_perturbed = s.wi;
+    s.wi = frame.to_world(wi_perturbed);
+    if (cos_theta(s.wi) * cos_theta(wi_perturbed) <= 0.f) {
+        s = BsdfSample{};
+        return s;
+    }
+    if (mode == TransportMode::Radiance) {
+        s.weight *= c.shadowing(frame.n, s.wi);
+        return s;
+    }
+    if (s.delta) {
+        const Frame camera_frame = c.perturbed_frame(uv, s.wi);
+        const Vec3f wo_perturbed = frame.to_local(wo);
+        if (camera_frame.n != frame.n || cos_theta(wo) * cos_theta(wo_perturbed) <= 0.f) {
+            s = BsdfSample{};
+            return s;
+        }
+        s.weight *= normal_map_adjoint_factor(wo, wo_perturbed, s.wi, wi_perturbed) *
+                    c.shadowing(frame.n, wo);
+        return s;
+    }
+    s.pdf_solid_angle = pdf(uv, wo, s.wi);
+    if (!(s.pdf_solid_angle > 0.f)) {
+        s = BsdfSample{};
+        return s;
+    }
+    s.weight = eval(uv, wo, s.wi, mode) / s.pdf_solid_angle;
+    return s;
+}
+
+Bsdf Bsdf::blend(FloatTexture weight, Bsdf first, Bsdf second) {
+    Composite c;
+    c.kind = Composite::Kind::Blend;
+    c.weight = std::move(weight);
+    c.first = std::move(first);
+    c.second = std::move(second);
+    Bsdf b;
+    b.composite_ = std::make_shared<const Composite>(std::move(c));
     return b;
 }
 
 BsdfSample Bsdf::sample_composite(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
                                   TransportMode mode) const {
     const Composite& c = *composite_;
+    if (c.normal_map()) return sample_normal_mapped(uv, wo, u_lobe, u, mode);
     const float w = c.weight_at(uv);
     BsdfSample s;
     if (c.mask()) {
@@ -282,6 +391,18 @@ const BsdfModel& Bsdf::model_for(const Vec3f& wo, Vec3f* wo_query, bool* flipped
 Rgb Bsdf::eval(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi, TransportMode mode) const {
     if (composite_) {
         const Composite& c = *composite_;
+        if (c.normal_map()) {
+            const bool radiance = mode == TransportMode::Radiance;
+            const Vec3f& w_camera = radiance ? wo : wi;
+            const Vec3f& w_light = radiance ? wi : wo;
+            const Frame frame = c.perturbed_frame(uv, w_camera);
+            const Vec3f wo_p = frame.to_local(wo), wi_p = frame.to_local(wi);
+            const Vec3f& w_light_p = radiance ? wi_p : wo_p;
+            if (cos_theta(w_light) * cos_theta(w_light_p) <= 0.f) return Rgb::Zero();
+            Rgb f = c.first.eval(uv, wo_p, wi_p, mode) * c.shadowing(frame.n, w_light);
+            if (!radiance) f *= normal_map_adjoint_factor(wo, wo_p, wi, wi_p);
+            return f;
+        }
         const float w = c.weight_at(uv);
         if (c.mask()) return w > 0.f ? Rgb(w * c.first.eval(uv, wo, wi, mode)) : Rgb::Zero();
         Rgb f = Rgb::Zero();
@@ -301,6 +422,12 @@ Rgb Bsdf::eval(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi, TransportMode 
 float Bsdf::pdf(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi) const {
     if (composite_) {
         const Composite& c = *composite_;
+        if (c.normal_map()) {
+            const Frame frame = c.perturbed_frame(uv, wo);
+            const Vec3f wi_p = frame.to_local(wi);
+            if (cos_theta(wi) * cos_theta(wi_p) <= 0.f) return 0.f;
+            return c.first.pdf(uv, frame.to_local(wo), wi_p);
+        }
         const float w = c.weight_at(uv);
         if (c.mask()) return w > 0.f ? w * c.first.pdf(uv, wo, wi) : 0.f;
         float p = 0.f;
@@ -336,12 +463,14 @@ BsdfSample Bsdf::sample(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Ve
 bool Bsdf::is_delta() const {
     if (composite_) {
         const Composite& c = *composite_;
+        if (c.normal_map()) return c.first.is_delta();
         if (c.mask()) return c.weight.max_value() <= 0.f || c.first.is_delta();
         return c.first.is_delta() && c.second.is_delta();
     }
     return model_is_delta(front_) && (!back_ || model_is_delta(*back_));
 }
 bool Bsdf::has_transmission() const {
+    if (composite_ && composite_->normal_map()) return composite_->first.has_transmission();
     if (composite_)
         return composite_->mask() || composite_->first.has_transmission() ||
                composite_->second.has_transmission();
@@ -350,6 +479,7 @@ bool Bsdf::has_transmission() const {
 RoughnessClass Bsdf::roughness_class() const {
     if (composite_) {
         const Composite& c = *composite_;
+        if (c.normal_map()) return c.first.roughness_class();
         if (c.mask())
             return c.weight.max_value() <= 0.f ? RoughnessClass::Delta : c.first.roughness_class();
         if (c.weight.max_value() <= 0.f) return c.first.roughness_class();
@@ -366,6 +496,7 @@ RoughnessClass Bsdf::roughness_class() const {
 RoughnessClass Bsdf::roughness_class_at(const Vec2f& uv) const {
     if (composite_) {
         const Composite& c = *composite_;
+        if (c.normal_map()) return c.first.roughness_class_at(uv);
         const float w = c.weight_at(uv);
         if (c.mask()) return w <= 0.f ? RoughnessClass::Delta : c.first.roughness_class_at(uv);
         if (w <= 0.f) return c.first.roughness_class_at(uv);
@@ -382,6 +513,7 @@ RoughnessClass Bsdf::roughness_class_at(const Vec2f& uv) const {
 BsdfLobes Bsdf::lobes() const {
     if (composite_) {
         const Composite& c = *composite_;
+        if (c.normal_map()) return c.first.lobes();
         if (c.mask()) {
             BsdfLobes l = c.weight.max_value() > 0.f ? c.first.lobes() : BsdfLobes{};
             BsdfLobes null_lobe;

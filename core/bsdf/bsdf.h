@@ -194,6 +194,12 @@ using BsdfModel =
 ///    component with those probabilities; a non-delta sample is weighed by the mixture's
 ///    f / pdf (one-sample MIS over the components, Veach 1997 sec. 9.2.4), a delta one by its
 ///    component's weight, its pdf being the lobe probability times the selection probability.
+///  - Mitsuba 3's `normalmap`: the nested BSDF in a frame whose normal is 2 rgb(uv) - 1 in the
+///    local shading frame, flipped about the normal towards the camera side when it faces away
+///    from it (`flip_invalid_normals`, Schuessler et al. 2017), attenuated by the microfacet
+///    terminator term of Conty Estevez et al. 2019 (`use_shadowing_function`), both on by
+///    default as in Mitsuba 3.9. In Importance mode it is the adjoint of that BSDF (Veach 1997,
+///    sec. 3.7.6), so that light tracing and BDPT converge to the path tracer's image.
 /// front(), back() and is_two_sided() describe a leaf only; callers that look inside the model
 /// (the path tracer's lanes, the manifold walk) treat composites as opaque.
 class Bsdf {
@@ -204,6 +210,8 @@ class Bsdf {
     static Bsdf mask(FloatTexture opacity, Bsdf nested);
     static Bsdf null();
     static Bsdf blend(FloatTexture weight, Bsdf first, Bsdf second);
+    static Bsdf normal_map(RgbTexture normals, Bsdf nested, bool flip_invalid_normals = true,
+                           bool use_shadowing_function = true);
     bool is_composite() const { return composite_ != nullptr; }
 
     Rgb eval(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi,
@@ -235,6 +243,8 @@ class Bsdf {
     const BsdfModel& model_for(const Vec3f& wo, Vec3f* wo_flip, bool* flipped) const;
     BsdfSample sample_composite(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
                                 TransportMode mode) const;
+    BsdfSample sample_normal_mapped(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
+                                    TransportMode mode) const;
 
     BsdfModel front_;
     std::optional<BsdfModel> back_;

@@ -385,6 +385,11 @@ struct Builder {
                 throw InputError(props.loc_of("wrap_mode"),
                                  "wrap_mode must be repeat, mirror or clamp");
             b.to_uv = read_uv_transform(props);
+            // Mitsuba 3's storage precision ("variant", "fp16", "fp32"): texels are kept as
+            // float here whatever it says.
+            const std::string format = props.get_string("format", "variant");
+            if (format != "variant" && format != "fp16" && format != "fp32")
+                throw InputError(props.loc_of("format"), "format must be variant, fp16 or fp32");
             props.check_all_used();
             auto& cached = bitmaps[{filename, raw}];
             if (!cached) {
@@ -405,8 +410,20 @@ struct Builder {
             props.check_all_used();
             return RgbTexture(TextureModel(c));
         }
-        diagnostics.unknown(obj.loc,
-                            "unknown texture '" + obj.type + "' (supported: bitmap, checkerboard)");
+        if (obj.type == "rawconstant") {
+            // Mitsuba 3's rawconstant: a float or a 3-vector, no colour conversion.
+            Rgb value = Rgb::Constant(1.f);
+            if (const Property* p = props.peek("value");
+                p && std::holds_alternative<Vec3Value>(p->value))
+                value = props.get_vec3("value", Vec3d::Ones()).cast<float>().array();
+            else
+                value = Rgb::Constant(static_cast<float>(props.get_float("value", 1.0)));
+            props.check_all_used();
+            if (!is_finite(value)) throw InputError(obj.loc, "rawconstant: value must be finite");
+            return RgbTexture(value);
+        }
+        diagnostics.unknown(obj.loc, "unknown texture '" + obj.type +
+                                         "' (supported: bitmap, checkerboard, rawconstant)");
         return RgbTexture(Rgb::Constant(0.5f));
     }
 
@@ -820,7 +837,8 @@ struct Builder {
             diagnostics.unknown(obj.loc, "unknown BSDF '" + obj.type +
                                              "' (supported: diffuse, dielectric, thindielectric, "
                                              "roughdielectric, conductor, roughconductor, plastic, "
-                                             "roughplastic, twosided, mask, blendbsdf, null)");
+                                             "roughplastic, twosided, mask, blendbsdf, null, "
+                                             "normalmap)");
             model = DiffuseBsdf{};
         }
         props.check_all_used();
@@ -828,7 +846,7 @@ struct Builder {
         return model;
     }
 
-    /// Mitsuba's `mask`, `blendbsdf` and `null` (see Bsdf's composites).
+    /// Mitsuba's `mask`, `blendbsdf`, `null` and `normalmap` (see Bsdf's composites).
     Bsdf build_composite_bsdf(const ObjectDesc& obj) {
         Properties props(obj, diagnostics);
         TextureParams textures(*this, obj, props);
@@ -839,6 +857,15 @@ struct Builder {
         if (obj.type == "null") {
             if (!nested.empty()) throw InputError(obj.loc, "null takes no nested BSDF");
             bsdf = Bsdf::null();
+        } else if (obj.type == "normalmap") {
+            if (nested.size() != 1) throw InputError(obj.loc, "normalmap expects one nested BSDF");
+            if (!textures.has("normalmap"))
+                throw InputError(obj.loc, "normalmap needs a 'normalmap' texture");
+            RgbTexture normals =
+                textures.rgb("normalmap", Rgb(0.5f, 0.5f, 1.f), SpectrumUse::Unbounded);
+            const bool flip = props.get_bool("flip_invalid_normals", true);
+            const bool shadowing = props.get_bool("use_shadowing_function", true);
+            bsdf = Bsdf::normal_map(std::move(normals), std::move(nested[0]), flip, shadowing);
         } else if (obj.type == "mask") {
             if (nested.size() != 1) throw InputError(obj.loc, "mask expects one nested BSDF");
             bsdf = Bsdf::mask(textures.scalar("opacity", 0.5f), std::move(nested[0]));
@@ -855,7 +882,8 @@ struct Builder {
     }
 
     Bsdf build_bsdf(const ObjectDesc& obj) {
-        if (obj.type == "mask" || obj.type == "blendbsdf" || obj.type == "null")
+        if (obj.type == "mask" || obj.type == "blendbsdf" || obj.type == "null" ||
+            obj.type == "normalmap")
             return build_composite_bsdf(obj);
         if (obj.type != "twosided") return Bsdf(build_bsdf_model(obj));
         Properties(obj, diagnostics).check_all_used();
@@ -864,7 +892,8 @@ struct Builder {
             const ObjectDesc& c = object(child.object);
             if (c.tag != "bsdf") throw InputError(c.loc, "twosided expects nested <bsdf> elements");
             if (c.type == "twosided") throw InputError(c.loc, "twosided cannot nest twosided");
-            if (c.type == "mask" || c.type == "blendbsdf" || c.type == "null")
+            if (c.type == "mask" || c.type == "blendbsdf" || c.type == "null" ||
+                c.type == "normalmap")
                 throw InputError(c.loc, "twosided cannot wrap " + c.type +
                                             " (write the twosided inside the " + c.type + ")");
             nested.push_back(build_bsdf_model(c));
