@@ -141,13 +141,17 @@ class MitsubaRunner:
             return {"error": f"worker exited (see {self.log_path})"}
         return self._read()
 
-    def load(self, scene: str, defines: dict | None = None) -> dict:
+    def load(self, scene: str, defines: dict | None = None, fallback: bool = True) -> dict:
         """Loads `scene` and renders the untimed warm-up. Falls back to the next variant when the
-        worker fails here (an unusable LLVM shows up at the first JIT compilation)."""
+        worker fails here (an unusable LLVM shows up at the first JIT compilation), unless
+        `fallback` is False (a corpus of scenes, some of which Mitsuba itself rejects): then the
+        error is returned and the worker kept when it is still alive."""
         self.scene = (os.path.abspath(scene), dict(defines or {}))
         while self.proc is not None:
             reply = self._call({"cmd": "load", "scene": self.scene[0], "defines": self.scene[1]})
             if "error" not in reply:
+                return reply
+            if not fallback and self.proc.poll() is None:
                 return reply
             self.notes.append(f"{self.info.get('variant')}: loading {os.path.basename(scene)} failed: "
                               f"{reply['error']}")
@@ -162,6 +166,15 @@ class MitsubaRunner:
         if "error" in reply:
             raise RuntimeError(f"Mitsuba render failed: {reply['error']}")
         reply["overshoot"] = reply["seconds"] > seconds * 1.05
+        return reply
+
+    def render_spp(self, spp: int, seed: int, out: str) -> dict:
+        """Renders the loaded scene at `spp` samples per pixel (in passes of at most MAX_LANES
+        camera samples, spp-weighted) and writes the image to `out` (EXR)."""
+        reply = self._call({"cmd": "render_spp", "spp": spp, "seed": seed,
+                            "out": os.path.abspath(out)})
+        if "error" in reply:
+            raise RuntimeError(f"Mitsuba render failed: {reply['error']}")
         return reply
 
     def _stop(self):
@@ -263,6 +276,21 @@ def _worker(variant: str, threads: int) -> int:
                 send({"spp": total, "seconds": seconds, "chunks": chunks,
                       "calibration_spp": chunks[0][0], "calibration_s": chunks[0][1],
                       "samples_per_s": total * lanes_per_spp / seconds, "pixels": lanes_per_spp})
+            elif request["cmd"] == "render_spp":
+                wanted, seed = int(request["spp"]), int(request["seed"])
+                max_chunk = max(1, MAX_LANES // lanes_per_spp)
+                total, index, accumulated = 0, 0, None
+                start = time.perf_counter()
+                while total < wanted:
+                    spp = min(max_chunk, wanted - total)
+                    weighted = render_pass(spp, pass_seed(seed, index)) * spp
+                    accumulated = weighted if accumulated is None else accumulated + weighted
+                    dr.eval(accumulated)
+                    total += spp
+                    index += 1
+                seconds = time.perf_counter() - start
+                mi.Bitmap(accumulated / total).write(request["out"])
+                send({"spp": total, "seconds": seconds, "pixels": lanes_per_spp})
             else:
                 send({"error": f"unknown command {request['cmd']!r}"})
         except Exception as e:  # noqa: BLE001 - reported to the parent, which decides

@@ -63,7 +63,8 @@ void sample_camera_path(const Scene& scene, const Vec2f& film_position, SampleSt
         const Vec3f wo = si.shading.to_local(-ray.direction);
         if (!bsdf.is_delta()) {
             v.light = scene.sample_emitter(si.p, u_emitter_choice, u_emitter);
-            if (v.light.valid()) {
+            // A black sample (outside a spot's cone) is kept for the offsets but casts no ray.
+            if (v.light.valid() && !is_black(v.light.radiance)) {
                 const Ray shadow =
                     std::isinf(v.light.distance)
                         ? spawn_ray(si.p, si.n_geometric, v.light.wi)

@@ -52,7 +52,7 @@ bool sample_next_event(const Scene& scene, const SurfaceInteraction& si, const V
                        const VertexNumbers& u, const Rgb& throughput, NextEventRay& next_event) {
     next_event.requested = false;
     const EmitterSample es = scene.sample_emitter(si.p, u.emitter_choice, u.emitter);
-    if (!es.valid()) return false;
+    if (!es.valid() || is_black(es.radiance)) return false;
     const Bsdf& bsdf = scene.bsdf_of(si);
     const Vec3f wi = si.shading.to_local(es.wi);
     const Rgb f = bsdf.eval(si.uv, wo, wi);

@@ -172,12 +172,11 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         s.distance = std::sqrt(dist2);
         s.wi = d / s.distance;
         s.p = position;
-        const Rgb intensity = delta_intensity_towards(e, -s.wi);
-        if (is_black(intensity)) {
-            s = EmitterSample{};
-            return s;
-        }
-        s.radiance = intensity / dist2;
+        // Valid even where the light sends nothing this way (outside a spot's cone, a black
+        // texel): a gradient-domain shift reuses the light's position for offset vertices the
+        // light does reach, and an invalid base sample would drop their light (GDPT's
+        // differences around a spot's cone were biased). Callers skip black samples' rays.
+        s.radiance = delta_intensity_towards(e, -s.wi) / dist2;
         s.pdf_solid_angle = pmf;
         s.delta = true;
     } else if (const auto* directional = std::get_if<DirectionalEmitter>(&e)) {

@@ -152,7 +152,9 @@ class Scene {
     /// emitters (constant, envmap) are sampled as one environment: a direction chosen through
     /// any of them carries the radiance of all of them and their combined density, which is
     /// what a BSDF-sampled ray that escapes sees (environment(), pdf_environment_solid_angle()),
-    /// so MIS weights agree on both sides.
+    /// so MIS weights agree on both sides. A light at a point that sends nothing towards
+    /// `ref_p` (a spot seen from outside its cone) still gives a valid sample with zero
+    /// radiance, whose position a gradient-domain shift reuses.
     EmitterSample sample_emitter(const Vec3f& ref_p, float u_select, const Vec2f& u) const;
 
     /// What sample_emitter samples when `u_select` chooses an area emitter of constant radiance

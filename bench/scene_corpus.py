@@ -1,0 +1,218 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Renders every stand-alone scene under a folder as written, and with --compare checks each
+against Mitsuba 3 at equal samples per pixel.
+
+    bench/scene_corpus.py DIR [--compare] [--spp 64] [--threads 2] [--out out/corpus]
+                          [--binary build/release/gdmlt] [--mitsuba-python PYTHON]
+
+A scene is stand-alone when its root element is <scene> and no other file of the folder
+includes it (<include filename="..."/>, looked up beside the including file and in its <path>
+folders, as the loaders do): Mitsuba's `fragments/` and `include/` files are parts, not scenes.
+Each scene is rendered by `gdmlt render FILE --spp N -D spp=N` (its own integrator, film and
+filter; `$spp` is the only parameter Mitsuba's corpus leaves without a default) and sorted into:
+
+  renders       exit 0 and an image;
+  out of scope  exit 2 with gdmlt's "<tag type=...> is not supported: <reason>" (the plugin is
+                listed);
+  error         anything else (the first line of the message is listed).
+
+With --compare, each scene that renders is also rendered by Mitsuba 3 (any interpreter that
+can `import mitsuba`, by default this one; llvm_ad_rgb, the same spp and thread count) and the
+table gives relMSE (bench/metrics.py) and the ratio of the image means, ours over Mitsuba's,
+with a "within 2%" verdict on the mean. At equal spp both images are noisy: a scene whose light
+comes through a few pixels (a point light's highlight on a smooth sphere) moves its mean by
+percents from seed to seed in either renderer; --seeds K averages K renders of each.
+
+Writes scene_corpus.json and scene_corpus.md (the table) to --out and prints the table. Exit
+status 0, whatever the scenes do: a benchmark, not a test.
+"""
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ElementTree
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+
+OUT_OF_SCOPE = re.compile(r"<(\w+) type=\"?([\w.-]+)\"?> is not supported: ([^\n]*)")
+
+
+def parse(path):
+    try:
+        return ElementTree.parse(path).getroot()
+    except (ElementTree.ParseError, OSError):
+        return None
+
+
+def search_folders(path, root):
+    """The folders a scene's includes are looked up in: its own, then its <path> folders."""
+    base = os.path.dirname(os.path.abspath(path))
+    folders = [base]
+    for element in root.iter("path"):
+        value = element.get("value")
+        if value:
+            folders.append(os.path.normpath(os.path.join(base, value)))
+    return folders
+
+
+def stand_alone_scenes(directory):
+    """Sorted paths of the stand-alone scenes under `directory` and the number of parts."""
+    files = []
+    for folder, _, names in os.walk(directory):
+        files += [os.path.join(folder, n) for n in names if n.endswith(".xml")]
+    roots = {f: parse(f) for f in files}
+    included = set()
+    for path, root in roots.items():
+        if root is None:
+            continue
+        folders = search_folders(path, root)
+        for element in root.iter("include"):
+            name = element.get("filename")
+            if not name:
+                continue
+            for folder in folders:
+                candidate = os.path.normpath(os.path.join(folder, name))
+                if os.path.isfile(candidate):
+                    included.add(candidate)
+                    break
+    scenes = sorted(os.path.normpath(f) for f, r in roots.items()
+                    if r is not None and r.tag == "scene" and os.path.normpath(f) not in included)
+    return scenes, len(files) - len(scenes)
+
+
+def render_ours(args, scene, out, seed):
+    command = [args.binary, "render", scene, "--spp", str(args.spp), "-D", f"spp={args.spp}",
+               "--seed", str(seed), "-t", str(args.threads), "-q", "-o", out]
+    try:
+        run = subprocess.run(command, capture_output=True, text=True, timeout=args.timeout)
+    except subprocess.TimeoutExpired:
+        return {"status": "error", "message": f"timed out after {args.timeout} s"}
+    message = (run.stderr.strip() or run.stdout.strip()).splitlines()
+    first = message[0] if message else ""
+    if run.returncode == 0 and os.path.isfile(out):
+        return {"status": "renders"}
+    match = OUT_OF_SCOPE.search(run.stderr)
+    if run.returncode == 2 and match:
+        return {"status": "out of scope", "plugin": f"{match.group(1)} {match.group(2)}",
+                "message": match.group(3)}
+    return {"status": "error", "message": first, "exit": run.returncode}
+
+
+def render_mitsuba(runner, scene, spp, out, seed):
+    reply = runner.load(scene, {"spp": str(spp)}, fallback=False)
+    if "error" in reply and "unused parameters" in reply["error"]:
+        reply = runner.load(scene, {}, fallback=False)
+    if "error" in reply:
+        return reply["error"].splitlines()[0]
+    runner.render_spp(spp, seed, out)
+    return None
+
+
+def mean_of(paths):
+    import metrics
+    images = [metrics.read_rgb(p) for p in paths]
+    return sum(images) / len(images)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("directory")
+    parser.add_argument("--binary", default=os.path.join(ROOT, "build", "release", "gdmlt"))
+    parser.add_argument("--spp", type=int, default=64)
+    parser.add_argument("--seeds", type=int, default=1, help="renders averaged per scene")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--timeout", type=float, default=900.0, help="seconds per render")
+    parser.add_argument("--compare", action="store_true", help="against Mitsuba 3")
+    parser.add_argument("--mitsuba-python", default=sys.executable)
+    parser.add_argument("--only", default="", help="regular expression on the scene paths")
+    parser.add_argument("--out", default=os.path.join(ROOT, "out", "corpus"))
+    args = parser.parse_args()
+    os.makedirs(args.out, exist_ok=True)
+    directory = os.path.abspath(args.directory)
+    scenes, parts = stand_alone_scenes(directory)
+    if args.only:
+        scenes = [s for s in scenes if re.search(args.only, s)]
+
+    runner = None
+    if args.compare:
+        from mitsuba_runner import MitsubaRunner
+        runner = MitsubaRunner(python=args.mitsuba_python, threads=args.threads,
+                               log_path=os.path.join(args.out, "mitsuba.log"))
+        if not runner.available:
+            sys.exit(f"--compare: Mitsuba 3 is not available: {runner.error}")
+
+    rows = []
+    for index, scene in enumerate(scenes):
+        name = os.path.relpath(scene, directory)
+        stem = re.sub(r"[^\w.-]", "_", name[:-4])
+        ours = [os.path.join(args.out, f"{stem}.gdmlt.{k}.exr") for k in range(args.seeds)]
+        started = time.perf_counter()
+        row = {"scene": name}
+        for k, path in enumerate(ours):
+            row.update(render_ours(args, scene, path, seed=k))
+            if row["status"] != "renders":
+                break
+        row["seconds"] = round(time.perf_counter() - started, 1)
+        if runner is not None and row["status"] == "renders":
+            import metrics
+            theirs = [os.path.join(args.out, f"{stem}.mitsuba.{k}.exr") for k in range(args.seeds)]
+            problem = None
+            for k, path in enumerate(theirs):
+                problem = render_mitsuba(runner, scene, args.spp, path, seed=k)
+                if problem:
+                    break
+            if problem:
+                row["mitsuba_error"] = problem
+            else:
+                a, b = mean_of(ours), mean_of(theirs)
+                if a.shape != b.shape:
+                    row["mitsuba_error"] = f"image sizes differ: {a.shape} and {b.shape}"
+                else:
+                    row["rel_mse"] = metrics.rel_mse(a, b)
+                    row["mean_ratio"] = float(a.mean() / b.mean()) if b.mean() > 0 else None
+        rows.append(row)
+        print(f"[{index + 1}/{len(scenes)}] {name}: {row['status']}"
+              + (f" ({row.get('plugin') or row.get('message')})" if row["status"] != "renders" else "")
+              + (f" relMSE {row['rel_mse']:.3g} mean {row['mean_ratio']:.4f}"
+                 if row.get("mean_ratio") else "")
+              + (f" Mitsuba: {row['mitsuba_error']}" if "mitsuba_error" in row else ""),
+              flush=True)
+    if runner is not None:
+        runner.close()
+
+    counts = {k: sum(r["status"] == k for r in rows) for k in ("renders", "out of scope", "error")}
+    compared = [r for r in rows if r.get("mean_ratio")]
+    within = sum(abs(r["mean_ratio"] - 1.0) <= 0.02 for r in compared)
+    lines = [f"Scenes under {args.directory}: {len(scenes)} stand-alone ({parts} parts left out), "
+             f"{counts['renders']} render, {counts['out of scope']} out of scope, "
+             f"{counts['error']} errors" + (f"; {within} of {len(compared)} compared within 2% "
+                                            f"of Mitsuba 3's mean at {args.spp} spp"
+                                            if runner is not None else "") + ".", "",
+             "| scene | result | relMSE | mean ratio |", "|---|---|---|---|"]
+    for r in rows:
+        result = r["status"] if r["status"] == "renders" else \
+            f"{r['status']}: {r.get('plugin') or r.get('message', '')}"
+        if "mitsuba_error" in r:
+            result += f" (Mitsuba: {r['mitsuba_error']})"
+        rel = f"{r['rel_mse']:.3g}" if "rel_mse" in r else ""
+        ratio = f"{r['mean_ratio']:.4f}" if r.get("mean_ratio") else ""
+        lines.append(f"| {r['scene']} | {result} | {rel} | {ratio} |")
+    table = "\n".join(lines)
+    print("\n" + table)
+    with open(os.path.join(args.out, "scene_corpus.md"), "w") as f:
+        f.write(table + "\n")
+    with open(os.path.join(args.out, "scene_corpus.json"), "w") as f:
+        json.dump({"directory": args.directory, "spp": args.spp, "seeds": args.seeds,
+                   "counts": counts, "compared": len(compared), "within_2_percent": within,
+                   "scenes": rows}, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
