@@ -289,7 +289,12 @@ def _worker(variant: str, threads: int) -> int:
                     total += spp
                     index += 1
                 seconds = time.perf_counter() - start
-                mi.Bitmap(accumulated / total).write(request["out"])
+                image = accumulated / total
+                if image.shape[2] > 3:
+                    # The beauty only: integrators with AOVs (moment, aov) put them after RGB.
+                    import numpy as np
+                    image = np.array(image)[:, :, :3]
+                mi.Bitmap(image).write(request["out"])
                 send({"spp": total, "seconds": seconds, "pixels": lanes_per_spp})
             else:
                 send({"error": f"unknown command {request['cmd']!r}"})

@@ -6,9 +6,10 @@ against Mitsuba 3 at equal samples per pixel.
     bench/scene_corpus.py DIR [--compare] [--spp 64] [--threads 2] [--out out/corpus]
                           [--binary build/release/gdmlt] [--mitsuba-python PYTHON]
 
-A scene is stand-alone when its root element is <scene> and no other file of the folder
-includes it (<include filename="..."/>, looked up beside the including file and in its <path>
-folders, as the loaders do): Mitsuba's `fragments/` and `include/` files are parts, not scenes.
+A scene is stand-alone when its root element is <scene>, no other file of the folder includes
+it (<include filename="..."/>, looked up beside the including file and in its <path> folders,
+as the loaders do; a `$parameter` in the name matches any text) and it has a sensor of its own
+or through its includes: Mitsuba's `fragments/` and `include/` files are parts, not scenes.
 Each scene is rendered by `gdmlt render FILE --spp N -D spp=N` (its own integrator, film and
 filter; `$spp` is the only parameter Mitsuba's corpus leaves without a default) and sorted into:
 
@@ -28,6 +29,7 @@ Writes scene_corpus.json and scene_corpus.md (the table) to --out and prints the
 status 0, whatever the scenes do: a benchmark, not a test.
 """
 import argparse
+import glob
 import json
 import os
 import re
@@ -40,7 +42,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 
-OUT_OF_SCOPE = re.compile(r"<(\w+) type=\"?([\w.-]+)\"?> is not supported: ([^\n]*)")
+OUT_OF_SCOPE = re.compile(r"<(\w+)(?: type=\"?([\w.-]+)\"?)?> is not supported: ([^\n]*)")
 
 
 def parse(path):
@@ -61,28 +63,45 @@ def search_folders(path, root):
     return folders
 
 
+def include_targets(path, root):
+    """The files `path`'s includes name, found as the loaders find them; a name with a
+    `$parameter` matches every file its other characters match (cbox.xml's bsdfs-$variant)."""
+    targets = []
+    folders = search_folders(path, root)
+    for element in root.iter("include"):
+        name = element.get("filename")
+        if not name:
+            continue
+        pattern = re.sub(r"\$\w+", "*", name)
+        for folder in folders:
+            found = sorted(glob.glob(os.path.join(glob.escape(folder), pattern)))
+            if found:
+                targets += [os.path.normpath(f) for f in found if os.path.isfile(f)]
+                break
+    return targets
+
+
 def stand_alone_scenes(directory):
-    """Sorted paths of the stand-alone scenes under `directory` and the number of parts."""
+    """Sorted paths of the stand-alone scenes under `directory` and the number of other XML
+    files. A stand-alone scene has a <scene> root, is included by no other file, and has a
+    sensor of its own or in what it includes (Mitsuba 3 renders nothing without one)."""
     files = []
     for folder, _, names in os.walk(directory):
-        files += [os.path.join(folder, n) for n in names if n.endswith(".xml")]
+        files += [os.path.normpath(os.path.join(folder, n)) for n in names if n.endswith(".xml")]
     roots = {f: parse(f) for f in files}
-    included = set()
-    for path, root in roots.items():
-        if root is None:
-            continue
-        folders = search_folders(path, root)
-        for element in root.iter("include"):
-            name = element.get("filename")
-            if not name:
-                continue
-            for folder in folders:
-                candidate = os.path.normpath(os.path.join(folder, name))
-                if os.path.isfile(candidate):
-                    included.add(candidate)
-                    break
-    scenes = sorted(os.path.normpath(f) for f, r in roots.items()
-                    if r is not None and r.tag == "scene" and os.path.normpath(f) not in included)
+    targets = {f: include_targets(f, r) for f, r in roots.items() if r is not None}
+    included = {t for ts in targets.values() for t in ts}
+
+    def has_sensor(path, seen):
+        if path in seen or roots.get(path) is None:
+            return False
+        seen.add(path)
+        return roots[path].find(".//sensor") is not None or \
+            any(has_sensor(t, seen) for t in targets.get(path, []))
+
+    scenes = sorted(f for f, r in roots.items()
+                    if r is not None and r.tag == "scene" and f not in included
+                    and has_sensor(f, set()))
     return scenes, len(files) - len(scenes)
 
 
@@ -99,7 +118,8 @@ def render_ours(args, scene, out, seed):
         return {"status": "renders"}
     match = OUT_OF_SCOPE.search(run.stderr)
     if run.returncode == 2 and match:
-        return {"status": "out of scope", "plugin": f"{match.group(1)} {match.group(2)}",
+        plugin = f"{match.group(1)} {match.group(2)}" if match.group(2) else match.group(1)
+        return {"status": "out of scope", "plugin": plugin,
                 "message": match.group(3)}
     return {"status": "error", "message": first, "exit": run.returncode}
 
@@ -167,10 +187,14 @@ def main():
                 problem = render_mitsuba(runner, scene, args.spp, path, seed=k)
                 if problem:
                     break
+            try:
+                compare = problem is None and (mean_of(ours), mean_of(theirs))
+            except (RuntimeError, ValueError) as e:
+                problem = f"cannot compare the images: {e}"
             if problem:
                 row["mitsuba_error"] = problem
             else:
-                a, b = mean_of(ours), mean_of(theirs)
+                a, b = compare
                 if a.shape != b.shape:
                     row["mitsuba_error"] = f"image sizes differ: {a.shape} and {b.shape}"
                 else:

@@ -142,6 +142,11 @@ Tangents tangents_around(const Vec3d& n) {
 std::optional<SurfacePoint> surface_point_at(const Shape& shape, std::int32_t shape_index,
                                              std::uint32_t primitive, const Vec2d& param) {
     std::optional<SurfacePoint> sp;
+    if (std::holds_alternative<Cylinder>(shape.geometry())) {
+        // Not parametrised for the walk yet: a specular chain through a cylinder is not
+        // walked (the caller counts the failure).
+        return sp;
+    }
     if (const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry())) {
         sp = mesh_point(*mesh, primitive, param);
     } else {
@@ -154,6 +159,7 @@ std::optional<SurfacePoint> surface_point_at(const Shape& shape, std::int32_t sh
 
 std::optional<SurfacePoint> surface_point_from(const Shape& shape, const SurfaceInteraction& si) {
     if (!si.valid()) return std::nullopt;
+    if (std::holds_alternative<Cylinder>(shape.geometry())) return std::nullopt;  // see above
     if (const auto* sphere = std::get_if<Sphere>(&shape.geometry())) {
         // From the position rather than from (phi, theta): no pole trouble, same float point.
         const Vec3d d = to_double(si.p) - to_double(sphere->center);
@@ -191,6 +197,7 @@ std::optional<SurfacePoint> refine_hit(const Shape& shape, std::int32_t shape_in
             return std::nullopt;
         return surface_point_at(shape, shape_index, primitive, Vec2d(b1, b2));
     }
+    if (!std::holds_alternative<Sphere>(shape.geometry())) return std::nullopt;
     const auto& sphere = std::get<Sphere>(shape.geometry());
     const Vec3d center = to_double(sphere.center);
     const double r = sphere.radius;
@@ -223,6 +230,7 @@ std::optional<SurfacePoint> move_on_surface(const Shape& shape, const SurfacePoi
         if (!duv) return std::nullopt;
         return surface_point_at(shape, point.shape, point.primitive, point.surface_param + *duv);
     }
+    if (!std::holds_alternative<Sphere>(shape.geometry())) return std::nullopt;
     const auto& sphere = std::get<Sphere>(shape.geometry());
     const Vec3d dir = (point.p - to_double(sphere.center)) / sphere.radius + e / sphere.radius;
     const double length = dir.norm();

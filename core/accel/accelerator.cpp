@@ -3,10 +3,12 @@
 
 #include <embree3/rtcore.h>
 
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "core/geometry/sphere_intersect.h"
 
@@ -18,6 +20,7 @@ struct Accelerator::Impl {
     // The spheres' own copies, which their Embree geometries point to (reserved once: the
     // addresses never move, whatever happens to the shapes the accelerator was built from).
     std::vector<Sphere> spheres;
+    std::vector<Cylinder> cylinders;
 };
 
 namespace {
@@ -91,6 +94,91 @@ void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
     }
 }
 
+// The cylinder geometry's callbacks: the ray in the cylinder's object space (an affine map keeps
+// t), the unit circle's quadratic in double precision, the nearer root whose height is within
+// [0, 1] (the cylinder is open: a ray can enter through an end and leave through the wall).
+
+void cylinder_bounds(const RTCBoundsFunctionArguments* args) {
+    const auto& c = *static_cast<const Cylinder*>(args->geometryUserPtr);
+    Eigen::AlignedBox3f box;
+    for (int corner = 0; corner < 8; ++corner) {
+        const Vec3f local((corner & 1) ? 1.f : -1.f, (corner & 2) ? 1.f : -1.f,
+                          (corner & 4) ? 1.f : 0.f);
+        box.extend(c.origin + c.linear * local);
+    }
+    RTCBounds& b = *args->bounds_o;
+    b.lower_x = box.min().x();
+    b.lower_y = box.min().y();
+    b.lower_z = box.min().z();
+    b.upper_x = box.max().x();
+    b.upper_y = box.max().y();
+    b.upper_z = box.max().z();
+}
+
+/// Distance to the first hit within (tnear, tfar), or infinity.
+float cylinder_distance(const Cylinder& c, RTCRayN* ray, unsigned n, unsigned i) {
+    const Vec3f origin(RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i),
+                       RTCRayN_org_z(ray, n, i));
+    const Vec3f direction(RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i),
+                          RTCRayN_dir_z(ray, n, i));
+    const Vec3d o = c.to_object(origin).cast<double>();
+    const Vec3d d = (c.object_from_world * direction).cast<double>();
+    const double a = d.x() * d.x() + d.y() * d.y();
+    if (!(a > 0.0)) return kInfinity;                // along the axis
+    const double b = o.x() * d.x() + o.y() * d.y();  // half the linear coefficient
+    const double cc = o.x() * o.x() + o.y() * o.y() - 1.0;
+    const double discriminant = b * b - a * cc;
+    if (!(discriminant >= 0.0)) return kInfinity;
+    // The root without cancellation first, the other from the product of the roots.
+    const double q = -(b + std::copysign(std::sqrt(discriminant), b));
+    double t0 = q / a, t1 = q != 0.0 ? cc / q : t0;
+    if (t0 > t1) std::swap(t0, t1);
+    const double tnear = RTCRayN_tnear(ray, n, i), tfar = RTCRayN_tfar(ray, n, i);
+    for (const double t : {t0, t1}) {
+        if (!(t > tnear) || !(t < tfar)) continue;
+        const double z = o.z() + t * d.z();
+        if (z >= 0.0 && z <= 1.0) return static_cast<float>(t);
+    }
+    return kInfinity;
+}
+
+void cylinder_intersect(const RTCIntersectFunctionNArguments* args) {
+    const auto& c = *static_cast<const Cylinder*>(args->geometryUserPtr);
+    const unsigned n = args->N;
+    RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
+    RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
+    for (unsigned i = 0; i < n; ++i) {
+        if (!args->valid[i]) continue;
+        const float t = cylinder_distance(c, ray, n, i);
+        if (!(t < kInfinity) || !(t < RTCRayN_tfar(ray, n, i))) continue;
+        RTCRayN_tfar(ray, n, i) = t;
+        // Shape::interaction rebuilds the point and normal from t; Ng is the outward normal
+        // for anyone who reads it.
+        const Vec3f p(RTCRayN_org_x(ray, n, i) + t * RTCRayN_dir_x(ray, n, i),
+                      RTCRayN_org_y(ray, n, i) + t * RTCRayN_dir_y(ray, n, i),
+                      RTCRayN_org_z(ray, n, i) + t * RTCRayN_dir_z(ray, n, i));
+        const Vec3f local = c.to_object(p);
+        const Vec3f ng = c.object_from_world.transpose() * Vec3f(local.x(), local.y(), 0.f);
+        RTCHitN_Ng_x(hit, n, i) = ng.x();
+        RTCHitN_Ng_y(hit, n, i) = ng.y();
+        RTCHitN_Ng_z(hit, n, i) = ng.z();
+        RTCHitN_u(hit, n, i) = 0.f;
+        RTCHitN_v(hit, n, i) = 0.f;
+        RTCHitN_primID(hit, n, i) = args->primID;
+        RTCHitN_geomID(hit, n, i) = args->geomID;
+        RTCHitN_instID(hit, n, i, 0) = args->context->instID[0];
+    }
+}
+
+void cylinder_occluded(const RTCOccludedFunctionNArguments* args) {
+    const auto& c = *static_cast<const Cylinder*>(args->geometryUserPtr);
+    for (unsigned i = 0; i < args->N; ++i) {
+        if (!args->valid[i]) continue;
+        if (cylinder_distance(c, args->ray, args->N, i) < kInfinity)
+            RTCRayN_tfar(args->ray, args->N, i) = -std::numeric_limits<float>::infinity();
+    }
+}
+
 }  // namespace
 
 Accelerator::Accelerator(const std::vector<Shape>& shapes) : impl_(std::make_unique<Impl>()) {
@@ -100,6 +188,7 @@ Accelerator::Accelerator(const std::vector<Shape>& shapes) : impl_(std::make_uni
     rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
     bounds_.setEmpty();
     impl_->spheres.reserve(shapes.size());
+    impl_->cylinders.reserve(shapes.size());
 
     for (std::size_t i = 0; i < shapes.size(); ++i) {
         const Shape& shape = shapes[i];
@@ -117,6 +206,18 @@ Accelerator::Accelerator(const std::vector<Shape>& shapes) : impl_(std::make_uni
                 rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
                                         3 * sizeof(unsigned), mesh->triangle_count()));
             for (std::size_t k = 0; k < mesh->indices.size(); ++k) indices[k] = mesh->indices[k];
+        } else if (const auto* cylinder = std::get_if<Cylinder>(&shape.geometry())) {
+            const Cylinder& c = impl_->cylinders.emplace_back(*cylinder);
+            geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_USER);
+            rtcSetGeometryUserPrimitiveCount(geometry, 1);
+            rtcSetGeometryUserData(geometry, impl_->cylinders.data() + impl_->cylinders.size() - 1);
+            rtcSetGeometryBoundsFunction(geometry, cylinder_bounds, nullptr);
+            rtcSetGeometryIntersectFunction(geometry, cylinder_intersect);
+            rtcSetGeometryOccludedFunction(geometry, cylinder_occluded);
+            for (int corner = 0; corner < 8; ++corner)
+                bounds_.extend(c.origin + c.linear * Vec3f((corner & 1) ? 1.f : -1.f,
+                                                           (corner & 2) ? 1.f : -1.f,
+                                                           (corner & 4) ? 1.f : 0.f));
         } else {
             // A sphere is a user geometry with our own intersection (sphere_intersect.h), not
             // Embree's RTC_GEOMETRY_TYPE_SPHERE_POINT, which runs through the curve machinery:

@@ -134,11 +134,41 @@ Shape::Shape(TriangleMesh mesh, int bsdf, std::string id)
     triangle_areas_ = AliasTable(areas);
 }
 
+Shape::Shape(Cylinder cylinder, int bsdf, std::string id)
+    : geometry_(cylinder), bsdf_(bsdf), id_(std::move(id)) {
+    area_ = 2.f * kPi * cylinder.radius * cylinder.length;
+    pdf_area_ = area_ > 0.f ? 1.f / area_ : 0.f;
+}
+
 Shape::Shape(Sphere sphere, int bsdf, std::string id)
     : geometry_(sphere), bsdf_(bsdf), id_(std::move(id)) {
     area_ = 4.f * kPi * sphere.radius * sphere.radius;
     pdf_area_ = area_ > 0.f ? 1.f / area_ : 0.f;
 }
+
+namespace {
+
+/// Fills `si` for the point `local` on the unit cylinder (x^2 + y^2 = 1) of `cylinder`'s object
+/// space (Mitsuba 3's cylinder.cpp parametrisation: u = phi / 2 pi, v = z).
+void fill_cylinder_interaction(const Cylinder& cylinder, const Vec3f& local,
+                               SurfaceInteraction& si) {
+    float phi = std::atan2(local.y(), local.x());
+    if (phi < 0.f) phi += 2.f * kPi;
+    si.p = cylinder.origin + cylinder.linear * local;
+    si.uv = Vec2f(phi * (0.5f * kInvPi), local.z());
+    si.surface_param = si.uv;
+    si.dp_du = cylinder.linear * Vec3f(-2.f * kPi * local.y(), 2.f * kPi * local.x(), 0.f);
+    si.dp_dv = cylinder.linear * Vec3f(0.f, 0.f, 1.f);
+    const float sign = cylinder.flip_normals ? -1.f : 1.f;
+    const Vec3f n = sign * si.dp_du.cross(si.dp_dv).normalized();
+    si.n_geometric = n;
+    si.shading = Frame::from_normal_and_tangent(n, si.dp_du);
+    // The normal turns along the circle only: dn/du = dp/du / r (the cylinder is straight).
+    si.dn_du = si.dp_du * (sign / cylinder.radius);
+    si.dn_dv = Vec3f::Zero();
+}
+
+}  // namespace
 
 SurfaceInteraction Shape::interaction(std::uint32_t primitive, const Vec2f& barycentric,
                                       const Vec3f& ray_origin, const Vec3f& ray_direction,
@@ -148,6 +178,18 @@ SurfaceInteraction Shape::interaction(std::uint32_t primitive, const Vec2f& bary
     if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
         fill_mesh_interaction(*mesh, face_normals_[primitive], frame_tangents_[primitive],
                               primitive, barycentric, si);
+    } else if (const auto* cylinder = std::get_if<Cylinder>(&geometry_)) {
+        // Back onto the unit cylinder in object space, as Mitsuba 3 reprojects its hits.
+        Vec3f local = cylinder->to_object(ray_origin + t * ray_direction);
+        const float r = std::hypot(local.x(), local.y());
+        if (r > 0.f) {
+            local.x() /= r;
+            local.y() /= r;
+        } else {
+            local = Vec3f(1.f, 0.f, local.z());
+        }
+        fill_cylinder_interaction(*cylinder, local, si);
+        si.primitive = primitive;
     } else {
         const auto& sphere = std::get<Sphere>(geometry_);
         // Project the hit back onto the sphere: exact normal, position error ~ ulp(|p|).
@@ -166,6 +208,10 @@ SurfaceInteraction Shape::interaction_at(std::uint32_t primitive, const Vec2f& p
     if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
         fill_mesh_interaction(*mesh, face_normals_[primitive], frame_tangents_[primitive],
                               primitive, param, si);
+    } else if (const auto* cylinder = std::get_if<Cylinder>(&geometry_)) {
+        const float phi = 2.f * kPi * param.x();
+        fill_cylinder_interaction(*cylinder, Vec3f(std::cos(phi), std::sin(phi), param.y()), si);
+        si.primitive = primitive;
     } else {
         const auto& sphere = std::get<Sphere>(geometry_);
         const float phi = 2.f * kPi * param.x(), theta = kPi * param.y();

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
-// Shapes in world space. Triangle meshes (obj, ply, rectangle, cube, disk) and analytic spheres.
+// Shapes in world space. Triangle meshes (obj, ply, rectangle, cube, disk), analytic spheres and
+// cylinders.
 #include <string>
 #include <variant>
 #include <vector>
@@ -30,6 +31,23 @@ struct Sphere {
     bool flip_normals = false;  // true: normals point inwards
 };
 
+/// Mitsuba's `cylinder`: the open unit cylinder x^2 + y^2 = 1, 0 <= z <= 1 of object space,
+/// mapped by world_from_object (translation to p0, rotation, the radius along x and y, the
+/// length along z; no shear and a round cross-section, checked when built). Normals point
+/// outwards unless flip_normals; uv = (phi / 2 pi, z) and dp/du along the circle, as Mitsuba 3.
+struct Cylinder {
+    Vec3f origin = Vec3f::Zero();                 // world position of the object origin (p0)
+    Mat3f linear = Mat3f::Identity();             // world_from_object's linear part
+    Mat3f object_from_world = Mat3f::Identity();  // its inverse
+    float radius = 1.f;
+    float length = 1.f;
+    bool flip_normals = false;
+
+    Vec3f to_object(const Vec3f& world_point) const {
+        return object_from_world * (world_point - origin);
+    }
+};
+
 struct ShapeSample {
     Vec3f p = Vec3f::Zero();
     Vec3f n_geometric = Vec3f::UnitZ();
@@ -40,8 +58,9 @@ class Shape {
   public:
     Shape(TriangleMesh mesh, int bsdf, std::string id);
     Shape(Sphere sphere, int bsdf, std::string id);
+    Shape(Cylinder cylinder, int bsdf, std::string id);
 
-    const std::variant<TriangleMesh, Sphere>& geometry() const { return geometry_; }
+    const std::variant<TriangleMesh, Sphere, Cylinder>& geometry() const { return geometry_; }
     int bsdf() const { return bsdf_; }
     int emitter() const { return emitter_; }
     void set_emitter(int emitter) { emitter_ = emitter; }
@@ -101,18 +120,25 @@ class Shape {
             const Vec2f b = warp::square_to_uniform_triangle(u);
             s.p = (1.f - b.x() - b.y()) * *triangle.a + b.x() * *triangle.b + b.y() * *triangle.c;
             s.n_geometric = *triangle.n_geometric;
-        } else {
-            const auto& sphere = std::get<Sphere>(geometry_);
+        } else if (const auto* sphere = std::get_if<Sphere>(&geometry_)) {
             const Vec3f dir = warp::square_to_uniform_sphere(u);
-            s.p = sphere.center + sphere.radius * dir;
-            s.n_geometric = sphere.flip_normals ? Vec3f(-dir) : dir;
+            s.p = sphere->center + sphere->radius * dir;
+            s.n_geometric = sphere->flip_normals ? Vec3f(-dir) : dir;
+        } else {
+            // Uniform in (phi, z): the area element r dphi length dz is constant.
+            const auto& cylinder = std::get<Cylinder>(geometry_);
+            const float phi = 2.f * kPi * u.x();
+            const Vec3f local(std::cos(phi), std::sin(phi), u.y());
+            s.p = cylinder.origin + cylinder.linear * local;
+            const Vec3f n = (cylinder.linear * Vec3f(local.x(), local.y(), 0.f)).normalized();
+            s.n_geometric = cylinder.flip_normals ? Vec3f(-n) : n;
         }
         s.pdf_area = pdf_area_;
         return s;
     }
 
   private:
-    std::variant<TriangleMesh, Sphere> geometry_;
+    std::variant<TriangleMesh, Sphere, Cylinder> geometry_;
     /// Unit geometric normal per triangle, flip_normals applied (zero for a degenerate
     /// triangle): computed once instead of a cross product and a square root per hit and per
     /// emitter sample. 12 bytes per triangle, half of what positions and indices take.

@@ -176,7 +176,7 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         // texel): a gradient-domain shift reuses the light's position for offset vertices the
         // light does reach, and an invalid base sample would drop their light (GDPT's
         // differences around a spot's cone were biased). Callers skip black samples' rays.
-        s.radiance = delta_intensity_towards(e, -s.wi) / dist2;
+        s.radiance = delta_position_radiance(static_cast<int>(index), -s.wi, dist2);
         s.pdf_solid_angle = pmf;
         s.delta = true;
     } else if (const auto* directional = std::get_if<DirectionalEmitter>(&e)) {

@@ -934,6 +934,56 @@ struct Builder {
         return index;
     }
 
+    /// Mitsuba 3's cylinder: `p0`, `p1`, `radius` (negative: normals flipped) and to_world,
+    /// which must keep the cross-section round and unsheared (Mitsuba only warns; its sampling
+    /// and area then assume a round one anyway).
+    Cylinder read_cylinder(Properties& props, const Transform& to_world, bool flip_normals) {
+        double radius = props.get_float("radius", 1.0);
+        const Vec3d p0 = props.get_vec3("p0", Vec3d::Zero());
+        const Vec3d p1 = props.get_vec3("p1", Vec3d(0.0, 0.0, 1.0));
+        if (!(radius != 0.0) || !std::isfinite(radius))
+            throw InputError(props.loc_of("radius"), "cylinder radius must be non-zero and finite");
+        if (radius < 0.0) {
+            radius = -radius;
+            flip_normals = !flip_normals;
+        }
+        const Vec3d axis = p1 - p0;
+        const double axis_length = axis.norm();
+        if (!(axis_length > 0.0) || !std::isfinite(axis_length))
+            throw InputError(props.loc_of("p1"), "cylinder p0 and p1 must differ");
+        // to_world * translate(p0) * to_frame(axis) * scale(radius, radius, length), as Mitsuba 3.
+        const Frame frame = Frame::from_normal((axis / axis_length).cast<float>());
+        Eigen::Matrix3d local;
+        local.col(0) = frame.s.cast<double>() * radius;
+        local.col(1) = frame.t.cast<double>() * radius;
+        local.col(2) = axis;
+        const Eigen::Matrix3d to_world_linear = to_world.matrix.topLeftCorner<3, 3>();
+        const Eigen::Matrix3d linear = to_world_linear * local;
+        const Vec3d origin = to_world.apply_point(p0);
+        const double rx = linear.col(0).norm(), ry = linear.col(1).norm(),
+                     length = linear.col(2).norm();
+        const auto perpendicular = [](const Vec3d& a, const Vec3d& b) {
+            return std::abs(a.dot(b)) <= 1e-5 * a.norm() * b.norm();
+        };
+        if (!(rx > 0.0) || !(length > 0.0) || std::abs(rx - ry) > 1e-5 * rx ||
+            !perpendicular(linear.col(0), linear.col(1)) ||
+            !perpendicular(linear.col(0), linear.col(2)) ||
+            !perpendicular(linear.col(1), linear.col(2)))
+            throw InputError(props.loc_of("to_world"),
+                             "cylinder to_world must keep the cross-section round (no shear, the "
+                             "same scale across the axis)");
+        check_world_point(Vec3d(origin.array().abs() + rx + length), props.loc_of("to_world"),
+                          "the cylinder");
+        Cylinder c;
+        c.origin = origin.cast<float>();
+        c.linear = linear.cast<float>();
+        c.object_from_world = linear.inverse().cast<float>();
+        c.radius = static_cast<float>(rx);
+        c.length = static_cast<float>(length);
+        c.flip_normals = flip_normals;
+        return c;
+    }
+
     void build_shape(const ObjectDesc& obj) {
         Properties props(obj, diagnostics);
         const Transform world_from_object = props.get_transform("to_world");
@@ -980,6 +1030,8 @@ struct Builder {
             s.radius = static_cast<float>(radius);
             s.flip_normals = flip_normals;
             shape.emplace(s, bsdf, obj.id);
+        } else if (obj.type == "cylinder") {
+            shape.emplace(read_cylinder(props, world_from_object, flip_normals), bsdf, obj.id);
         } else {
             TriangleMesh mesh;
             bool face_normals = true;
@@ -1016,7 +1068,7 @@ struct Builder {
                 diagnostics.unknown(
                     obj.loc, "unknown shape '" + obj.type +
                                  "' (supported: obj, ply, off, serialized, rectangle, cube, disk, "
-                                 "sphere)");
+                                 "sphere, cylinder)");
                 return;
             }
             mesh.flip_normals = flip_normals;

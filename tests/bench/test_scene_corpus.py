@@ -3,7 +3,8 @@
 """`bench/scene_corpus.py` on a folder written here: which files are scenes, and how each ends.
 
 The folder holds a scene that renders (8x8 pixels, 4 spp), one that includes a fragment from a
-subfolder found through its <path> tag (the fragment is a part, not a scene), one with a
+subfolder found through its <path> tag (the fragment is a part, not a scene), one whose include
+names its file through a parameter, a fragment without a sensor that nothing includes, one with a
 participating medium (out of scope: listed with its plugin), one with a misspelt BSDF (an
 error, with gdmlt's message) and an XML file that is not a scene. No Mitsuba: --compare is not
 run. About 1 s.
@@ -36,6 +37,15 @@ FILES = {
                         '        <medium name="interior" type="homogeneous"/></shape>\n</scene>\n',
     "typo.xml": HEAD + '    <shape type="sphere"><bsdf type="difuse"/></shape>\n</scene>\n',
     "not_a_scene.xml": '<bsdf type="diffuse"/>\n',
+    # Includes named through a parameter (Mitsuba's cbox.xml: fragments/bsdfs-$variant.xml):
+    # every file the name can match is a part, though each holds a sensor.
+    "with_parameter.xml": '<scene version="3.0.0">\n    <default name="view" value="near"/>\n'
+                          '    <include filename="parts/view_$view.xml"/>\n'
+                          '    <shape type="sphere"/>\n</scene>\n',
+    "parts/view_near.xml": HEAD + '</scene>\n',
+    "parts/view_far.xml": HEAD.replace("0, 0, 4", "0, 0, 8") + '</scene>\n',
+    # No sensor of its own or through includes: a fragment nobody includes, not a scene.
+    "loose_part.xml": '<scene version="3.0.0">\n    <shape type="sphere"/>\n</scene>\n',
 }
 
 
@@ -59,7 +69,8 @@ class SceneCorpus(unittest.TestCase):
                 report = json.load(f)
             by_scene = {r["scene"]: r for r in report["scenes"]}
             self.assertEqual(sorted(by_scene), ["plain.xml", "smoke.xml", "typo.xml",
-                                                "with_part.xml"], run.stdout)
+                                                "with_parameter.xml", "with_part.xml"], run.stdout)
+            self.assertEqual(by_scene["with_parameter.xml"]["status"], "renders")
             self.assertEqual(by_scene["plain.xml"]["status"], "renders")
             self.assertEqual(by_scene["with_part.xml"]["status"], "renders")
             self.assertTrue(os.path.isfile(os.path.join(out, "with_part.gdmlt.0.exr")))
@@ -67,10 +78,10 @@ class SceneCorpus(unittest.TestCase):
             self.assertEqual(by_scene["smoke.xml"]["plugin"], "medium homogeneous")
             self.assertEqual(by_scene["typo.xml"]["status"], "error")
             self.assertIn("difuse", by_scene["typo.xml"]["message"])
-            self.assertEqual(report["counts"], {"renders": 2, "out of scope": 1, "error": 1})
+            self.assertEqual(report["counts"], {"renders": 3, "out of scope": 1, "error": 1})
             with open(os.path.join(out, "scene_corpus.md")) as f:
                 table = f.read()
-            self.assertIn("4 stand-alone (2 parts left out), 2 render, 1 out of scope, 1 errors",
+            self.assertIn("5 stand-alone (5 parts left out), 3 render, 1 out of scope, 1 errors",
                           table)
 
 
