@@ -106,37 +106,33 @@ class GradientBias(unittest.TestCase):
         self.assertLessEqual(summary["max_abs_z"], 5.0, run.stdout)
         self.assertEqual(run.returncode, 0, run.stdout + run.stderr)
 
+    def run_scene_text(self, text, name, **spp):
+        """run_script on a scene written here, to a temporary `name`.xml."""
+        with tempfile.TemporaryDirectory(prefix=f"gdmlt_gradient_bias_{name}_") as tmp:
+            path = os.path.join(tmp, f"{name}.xml")
+            with open(path, "w") as f:
+                f.write(text)
+            self.run_script(path, name, **spp)
+
     def test_gdpt_differences_agree_with_the_path_tracer_everywhere(self):
         self.run_script(os.path.join(ROOT, "scenes", "materials_envmap.xml"), "materials_envmap")
 
     def test_gdpt_differences_agree_under_a_textured_spot_light(self):
         # Measured max |z| 2.6; 163 when an offset's light sample kept the base's intensity
         # scaled by the squared distances (the spot's falloff and texture ignored).
-        with tempfile.TemporaryDirectory(prefix="gdmlt_gradient_bias_spot_") as tmp:
-            path = os.path.join(tmp, "spot_checker.xml")
-            with open(path, "w") as f:
-                f.write(SPOT_SCENE)
-            self.run_script(path, "spot_checker")
+        self.run_scene_text(SPOT_SCENE, "spot_checker")
 
     def test_gdpt_differences_agree_where_a_spot_light_does_not_reach(self):
         # GDPT 8192 and path 2 x 32768 spp (a bias grows as the square root of the samples
         # against the noise; about 14 s). Measured max |z| 1.4 (mean -0.31). When the base
         # path's light sample was dropped where the spot sends nothing (outside its cone), so
         # that offsets inside the cone lost theirs: 17.9 here, 9.3 at a quarter of the samples.
-        with tempfile.TemporaryDirectory(prefix="gdmlt_gradient_bias_spot_dark_") as tmp:
-            path = os.path.join(tmp, "spot_dark.xml")
-            with open(path, "w") as f:
-                f.write(SPOT_DARK_SCENE)
-            self.run_script(path, "spot_dark", gdpt_spp=8192, path_spp=32768)
+        self.run_scene_text(SPOT_DARK_SCENE, "spot_dark", gdpt_spp=8192, path_spp=32768)
 
     def test_gdpt_differences_agree_through_masks_and_blends(self):
         # Measured max |z| 1.5 (z mean +0.16 over the 8 block-directions; at 4x the samples
         # max 2.5, mean -0.97: no growth, where a bias would double).
-        with tempfile.TemporaryDirectory(prefix="gdmlt_gradient_bias_mask_") as tmp:
-            path = os.path.join(tmp, "masked_leaf.xml")
-            with open(path, "w") as f:
-                f.write(MASK_SCENE)
-            self.run_script(path, "masked_leaf")
+        self.run_scene_text(MASK_SCENE, "masked_leaf")
 
 
 if __name__ == "__main__":
