@@ -22,6 +22,7 @@
 #include "core/image/image_io.h"
 #include "core/math/stopwatch.h"
 #include "core/render/adap_selection.h"
+#include "core/render/aov_pass.h"
 #include "core/render/feature_pass.h"
 #include "core/render/render_bdpt.h"
 #include "core/render/render_path.h"
@@ -776,6 +777,16 @@ int run_render(const RenderOptions& options) {
         result.extra_layers.push_back(
             ExrLayer{"normal_variance", {"Y"}, features->normal_variance});
         result.extra_layers.push_back(ExrLayer{"depth_variance", {"Y"}, features->depth_variance});
+    }
+    if (!scene.integrator().aovs.empty()) {
+        // Mitsuba 3's `aov` integrator: the first hit's variables, averaged over the camera
+        // rays of (at most 64 of) the render's samples per pixel.
+        const int aov_spp =
+            std::clamp(options.spp > 0 ? options.spp : scene.sampler().sample_count, 1, 64);
+        for (ExrLayer& layer :
+             render_aovs(scene, scene.integrator().aovs, aov_spp,
+                         options.seed.value_or(scene.sampler().seed), &g_interrupted))
+            result.extra_layers.push_back(std::move(layer));
     }
     if (gradient_domain) result.image = filter_image(result.image, film_filter);
     bar.finish(result.partial);

@@ -16,6 +16,7 @@
 #include "core/geometry/shape.h"
 #include "core/sampling/alias_table.h"
 #include "core/sampling/distribution_1d.h"
+#include "core/scene/aov.h"
 #include "core/scene/scene_desc.h"
 
 namespace gdmlt {
@@ -49,6 +50,8 @@ struct IntegratorSettings {
     int max_depth = -1;
     int rr_depth = 5;
     bool hide_emitters = false;
+    /// Mitsuba 3's `aov` wrapper: the layers to write beside its nested integrator's image.
+    std::vector<AovRequest> aovs;
     ObjectDesc desc;  // the raw element (type, properties, location), empty when absent
 };
 

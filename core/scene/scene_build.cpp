@@ -497,6 +497,51 @@ struct Builder {
             build_integrator(*nested);
             return;
         }
+        if (obj.type == "aov") {
+            // Mitsuba 3's `aov`: the image of its nested integrator, and the first hit's
+            // variables as layers (core/scene/aov.h). Mitsuba also writes further nested
+            // integrators' images as layers; one is supported here.
+            Properties props(obj, diagnostics);
+            const std::string list = props.get_string("aovs", "");
+            std::vector<AovRequest> aovs;
+            std::size_t start = 0;
+            while (start <= list.size()) {
+                std::size_t end = list.find(',', start);
+                if (end == std::string::npos) end = list.size();
+                std::string item = list.substr(start, end - start);
+                item.erase(0, item.find_first_not_of(" \t\n"));
+                item.erase(item.find_last_not_of(" \t\n") + 1);
+                start = end + 1;
+                if (item.empty()) continue;
+                const std::size_t colon = item.find(':');
+                const std::optional<AovType> type = colon == std::string::npos
+                                                        ? std::nullopt
+                                                        : parse_aov_type(item.substr(colon + 1));
+                if (colon == 0 || !type)
+                    throw InputError(
+                        props.loc_of("aovs"),
+                        "aovs: '" + item + "' is not name:type with a type among " + kAovTypeNames);
+                aovs.push_back(AovRequest{item.substr(0, colon), *type});
+            }
+            if (aovs.empty())
+                throw InputError(obj.loc, "<integrator type=\"aov\"> needs a list of aovs");
+            props.check_all_used();
+            const ObjectDesc* nested = nullptr;
+            for (const ChildRef& child : obj.children) {
+                const ObjectDesc& c = object(child.object);
+                if (c.tag != "integrator" || nested)
+                    diagnostics.unknown(c.loc, "unsupported element " + describe(c) +
+                                                   " in <integrator type=\"aov\"> (one nested "
+                                                   "integrator is rendered)");
+                else
+                    nested = &c;
+            }
+            // Without a nested integrator Mitsuba writes only the AOVs; the path tracer's image
+            // is written here as the beauty.
+            if (nested) build_integrator(*nested);
+            integrator.aovs = std::move(aovs);
+            return;
+        }
         if (obj.type == "direct") {
             // Mitsuba 3's `direct`: the light seen directly and direct illumination at the first
             // hit, by MIS of emitter and BSDF samples: the path tracer's expectation with

@@ -93,6 +93,24 @@ TEST_F(Cli, RenderWritesTheExrThePngAndTheStatistics) {
     EXPECT_GT(sum, 0.0);
 }
 
+TEST_F(Cli, AnAovIntegratorWritesItsLayersWithMitsubasChannelNames) {
+    // Mitsuba 3's integrator_aov.xml spelling: the beauty of the nested path tracer and the
+    // layers nn.X/Y/Z, depth.y.T beside it.
+    write("aov.xml",
+          "<scene version=\"3.0.0\">\n" + test::sensor_xml(8, 40.f, "0, 0, 4") +
+              R"(<integrator type="aov"><string name="aovs" value="nn:sh_normal, depth.y:depth"/>
+                                <integrator type="path" name="image"/></integrator>
+                            <shape type="rectangle"/><emitter type="constant"/></scene>)");
+    const Outcome run = run_gdmlt(dir_, "render aov.xml --spp 4 -t 2 -q -o out.exr");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    std::vector<std::string> channels;
+    for (const ExrLayer& layer : read_exr((dir_ / "out.exr").string()))
+        for (const std::string& c : layer.channel_names)
+            channels.push_back(layer.name.empty() ? c : layer.name + "." + c);
+    for (const char* name : {"R", "G", "B", "nn.X", "nn.Y", "nn.Z", "depth.y.T"})
+        EXPECT_NE(std::find(channels.begin(), channels.end(), name), channels.end()) << name;
+}
+
 TEST_F(Cli, RenderCreatesMissingOutputDirectoriesOfARelativePath) {
     // The README's first command writes `out/cbox.exr` from a fresh clone, where `out` does not
     // exist yet: the output check must look at the working directory, and the write create
