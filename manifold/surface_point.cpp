@@ -124,6 +124,40 @@ SurfacePoint sphere_point(const Sphere& sphere, const Vec3d& dir) {
     return sp;
 }
 
+/// Cylinder parametrised by u = phi / 2pi, v = z of its object space (shape.cpp): the point at
+/// angle `phi` and height `z` on the unit circle, mapped by world_from_object.
+SurfacePoint cylinder_point(const Cylinder& cylinder, double phi, double z) {
+    const Eigen::Matrix3d linear = cylinder.linear.cast<double>();
+    const double r = cylinder.radius;
+    const double c = std::cos(phi), s = std::sin(phi);
+    SurfacePoint sp;
+    sp.p = to_double(cylinder.origin) + linear * Vec3d(c, s, z);
+    double u = phi / kTwoPi;
+    u -= std::floor(u);
+    sp.surface_param = Vec2d(u, z);
+    sp.dp_du = linear * Vec3d(-kTwoPi * s, kTwoPi * c, 0.0);
+    sp.dp_dv = linear * Vec3d(0.0, 0.0, 1.0);
+    // Outward normal: the radial direction, |L (c, s, 0)| = r for a round cross-section.
+    const Vec3d outward = linear * Vec3d(c, s, 0.0) / r;
+    const double sign = cylinder.flip_normals ? -1.0 : 1.0;
+    sp.n_geometric = sign * outward;
+    sp.n_shading = sp.n_geometric;
+    sp.dn_du = sign * sp.dp_du / r;  // the normal turns with the circle only
+    sp.dn_dv = Vec3d::Zero();
+    sp.frame_reference = sp.dp_du;
+    const Vec3d along_circle = sp.dp_du.normalized();
+    sp.tangents[0] = along_circle;
+    sp.tangents[1] = sp.n_geometric.cross(along_circle);
+    for (int k = 0; k < 2; ++k) {
+        // Per unit length along e, phi changes by (e . t0) / r: n turns by that times
+        // t0 (sign included) and dp_du by that times -2 pi r outward.
+        const double dphi = sp.tangents[k].dot(along_circle) / r;
+        sp.dn_shading_dtangent[k] = sign * dphi * along_circle;
+        sp.dframe_reference_dtangent[k] = -kTwoPi * r * dphi * outward;
+    }
+    return sp;
+}
+
 Vec3d sphere_direction_from_param(const Vec2d& param) {
     const double phi = kTwoPi * param.x(), theta = std::numbers::pi * param.y();
     return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
@@ -142,9 +176,10 @@ Tangents tangents_around(const Vec3d& n) {
 std::optional<SurfacePoint> surface_point_at(const Shape& shape, std::int32_t shape_index,
                                              std::uint32_t primitive, const Vec2d& param) {
     std::optional<SurfacePoint> sp;
-    if (std::holds_alternative<Cylinder>(shape.geometry())) {
-        // Not parametrised for the walk yet: a specular chain through a cylinder is not
-        // walked (the caller counts the failure).
+    if (const auto* cylinder = std::get_if<Cylinder>(&shape.geometry())) {
+        sp = cylinder_point(*cylinder, kTwoPi * param.x(), param.y());
+        sp->primitive = primitive;
+        sp->shape = shape_index;
         return sp;
     }
     if (const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry())) {
@@ -159,7 +194,15 @@ std::optional<SurfacePoint> surface_point_at(const Shape& shape, std::int32_t sh
 
 std::optional<SurfacePoint> surface_point_from(const Shape& shape, const SurfaceInteraction& si) {
     if (!si.valid()) return std::nullopt;
-    if (std::holds_alternative<Cylinder>(shape.geometry())) return std::nullopt;  // see above
+    if (const auto* cylinder = std::get_if<Cylinder>(&shape.geometry())) {
+        // From the position, as for the sphere.
+        const Vec3d local = cylinder->linear.cast<double>().inverse() *
+                            (to_double(si.p) - to_double(cylinder->origin));
+        SurfacePoint sp = cylinder_point(*cylinder, std::atan2(local.y(), local.x()), local.z());
+        sp.shape = si.shape;
+        sp.primitive = si.primitive;
+        return sp;
+    }
     if (const auto* sphere = std::get_if<Sphere>(&shape.geometry())) {
         // From the position rather than from (phi, theta): no pole trouble, same float point.
         const Vec3d d = to_double(si.p) - to_double(sphere->center);
@@ -197,6 +240,31 @@ std::optional<SurfacePoint> refine_hit(const Shape& shape, std::int32_t shape_in
             return std::nullopt;
         return surface_point_at(shape, shape_index, primitive, Vec2d(b1, b2));
     }
+    if (const auto* cylinder = std::get_if<Cylinder>(&shape.geometry())) {
+        // The unit circle's quadratic in object space (an affine map keeps t), the root nearer
+        // the hint within the cylinder's height. The inverse is taken in double: the float one
+        // the renderer keeps undoes `linear` only to ~1e-7, and points projected with it sat
+        // off the surface cylinder_point rebuilds, so walks stalled above their 1e-8 tolerance.
+        const Eigen::Matrix3d to_object = cylinder->linear.cast<double>().inverse();
+        const Vec3d o = to_object * (origin - to_double(cylinder->origin));
+        const Vec3d d = to_object * direction;
+        const double a = d.x() * d.x() + d.y() * d.y();
+        const double b = o.x() * d.x() + o.y() * d.y();
+        const double c = o.x() * o.x() + o.y() * o.y() - 1.0;
+        const double discriminant = b * b - a * c;
+        if (!(a > 0.0) || discriminant < -1e-10 * a) return std::nullopt;
+        const double q = -(b + std::copysign(safe_sqrt(discriminant), b));
+        const double t0 = q / a, t1 = q != 0.0 ? c / q : t0;
+        double t = std::abs(t0 - t_hint) <= std::abs(t1 - t_hint) ? t0 : t1;
+        if (!(t > 0.0)) t = std::max(t0, t1);
+        if (!(t > 0.0) || !std::isfinite(t)) return std::nullopt;
+        const Vec3d local = o + t * d;
+        if (local.z() < 0.0 || local.z() > 1.0) return std::nullopt;  // past an open end
+        SurfacePoint sp = cylinder_point(*cylinder, std::atan2(local.y(), local.x()), local.z());
+        sp.shape = shape_index;
+        sp.primitive = primitive;
+        return sp;
+    }
     if (!std::holds_alternative<Sphere>(shape.geometry())) return std::nullopt;
     const auto& sphere = std::get<Sphere>(shape.geometry());
     const Vec3d center = to_double(sphere.center);
@@ -229,6 +297,17 @@ std::optional<SurfacePoint> move_on_surface(const Shape& shape, const SurfacePoi
         const std::optional<Vec2d> duv = param_offset(point.dp_du, point.dp_dv, e);
         if (!duv) return std::nullopt;
         return surface_point_at(shape, point.shape, point.primitive, point.surface_param + *duv);
+    }
+    if (const auto* cylinder = std::get_if<Cylinder>(&shape.geometry())) {
+        // Along the circle by arc length, along the axis by height: exact on the surface.
+        const double phi = kTwoPi * point.surface_param.x() +
+                           e.dot(point.tangents[0]) / static_cast<double>(cylinder->radius);
+        const double z = point.surface_param.y() + e.dot(point.dp_dv) / point.dp_dv.squaredNorm();
+        if (z < 0.0 || z > 1.0) return std::nullopt;
+        SurfacePoint sp = cylinder_point(*cylinder, phi, z);
+        sp.shape = point.shape;
+        sp.primitive = point.primitive;
+        return sp;
     }
     if (!std::holds_alternative<Sphere>(shape.geometry())) return std::nullopt;
     const auto& sphere = std::get<Sphere>(shape.geometry());

@@ -83,7 +83,7 @@ std::string write_icosphere_obj(int subdivisions) {
     return path;
 }
 
-enum class ChainKind { MirrorSphereInside, GlassSphere, MirrorMeshInside };
+enum class ChainKind { MirrorSphereInside, GlassSphere, MirrorMeshInside, MirrorCylinderInside };
 
 const char* name(ChainKind kind) {
     switch (kind) {
@@ -93,6 +93,8 @@ const char* name(ChainKind kind) {
             return "glass sphere";
         case ChainKind::MirrorMeshInside:
             return "smooth-normal mirror mesh (inside)";
+        case ChainKind::MirrorCylinderInside:
+            return "mirror cylinder (inside)";
     }
     return "?";
 }
@@ -106,6 +108,11 @@ Scene make_scene(ChainKind kind) {
             return test::scene_from_xml(R"(<shape type="sphere"><float name="radius" value="1"/>
                 <bsdf type="dielectric"><float name="int_ior" value="1.5"/>
                 <float name="ext_ior" value="1"/></bsdf></shape>)");
+        case ChainKind::MirrorCylinderInside:
+            // Long enough that most random chains from near the centre stay inside it.
+            return test::scene_from_xml(R"(<shape type="cylinder"><float name="radius" value="1"/>
+                <point name="p0" value="0, 0, -4"/><point name="p1" value="0, 0, 4"/>
+                <boolean name="flip_normals" value="true"/><bsdf type="conductor"/></shape>)");
         case ChainKind::MirrorMeshInside: {
             // The OBJ file lives only while the scene loads it (the scene keeps the mesh).
             const std::string path = write_icosphere_obj(2);
@@ -310,8 +317,8 @@ void expect_blocks_match_finite_differences(const Scene& scene, const SpecularCh
 
 TEST(Constraints, TracedChainsSatisfyTheirConstraints) {
     std::mt19937 rng(11);
-    for (const ChainKind kind :
-         {ChainKind::MirrorSphereInside, ChainKind::GlassSphere, ChainKind::MirrorMeshInside}) {
+    for (const ChainKind kind : {ChainKind::MirrorSphereInside, ChainKind::GlassSphere,
+                                 ChainKind::MirrorMeshInside, ChainKind::MirrorCylinderInside}) {
         const Scene scene = make_scene(kind);
         for (int k = 1; k <= 6; ++k) {
             const auto chain = random_chain(scene, kind, k, rng);
@@ -361,8 +368,8 @@ TEST(Constraints, ShadingFrameFollowsTheTextureAndMatchesTheRenderersFrame) {
 
 TEST(Constraints, DerivativeBlocksMatchCentralFiniteDifferences) {
     std::mt19937 rng(12);
-    for (const ChainKind kind :
-         {ChainKind::MirrorSphereInside, ChainKind::GlassSphere, ChainKind::MirrorMeshInside}) {
+    for (const ChainKind kind : {ChainKind::MirrorSphereInside, ChainKind::GlassSphere,
+                                 ChainKind::MirrorMeshInside, ChainKind::MirrorCylinderInside}) {
         const Scene scene = make_scene(kind);
         for (int k = 1; k <= 6; ++k) {
             for (int trial = 0; trial < 4; ++trial) {
@@ -419,8 +426,8 @@ std::optional<double> finite_difference_log_solid_angle_per_area(const Scene& sc
 
 TEST(GeneralizedGeometry, SolidAnglePerAreaMatchesFiniteDifferencesOfTracedChains) {
     std::mt19937 rng(13);
-    for (const ChainKind kind :
-         {ChainKind::MirrorSphereInside, ChainKind::GlassSphere, ChainKind::MirrorMeshInside}) {
+    for (const ChainKind kind : {ChainKind::MirrorSphereInside, ChainKind::GlassSphere,
+                                 ChainKind::MirrorMeshInside, ChainKind::MirrorCylinderInside}) {
         const Scene scene = make_scene(kind);
         for (int k = 0; k <= 6; ++k) {
             for (int trial = 0; trial < 3; ++trial) {
@@ -534,8 +541,8 @@ std::optional<double> finite_difference_log_half_vector_jacobian(const Scene& sc
 TEST(GeneralizedGeometry, HalfVectorJacobianMatchesFiniteDifferences) {
     std::mt19937 rng(15);
     int checked = 0;
-    for (const ChainKind kind :
-         {ChainKind::MirrorSphereInside, ChainKind::GlassSphere, ChainKind::MirrorMeshInside}) {
+    for (const ChainKind kind : {ChainKind::MirrorSphereInside, ChainKind::GlassSphere,
+                                 ChainKind::MirrorMeshInside, ChainKind::MirrorCylinderInside}) {
         const Scene scene = make_scene(kind);
         for (int k = 1; k <= 5; ++k) {
             for (int trial = 0; trial < 3; ++trial) {

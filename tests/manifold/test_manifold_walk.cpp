@@ -184,6 +184,28 @@ TEST(ManifoldWalk, SphereRefractionConvergesToTheConstructedSolution) {
     EXPECT_LE(r.iterations, 6);
 }
 
+TEST(ManifoldWalk, CylinderRefractionConvergesToTheConstructedSolution) {
+    // Through a glass cylinder of radius 1 along z (Mitsuba's cylinder, open far beyond the
+    // chain): in at x1, out at x2 across the chord, on to the target.
+    const double eta = 1.5;
+    const Scene scene = test::scene_from_xml(
+        R"(<shape type="cylinder"><point name="p0" value="0, 0, -3"/><point name="p1" value="0, 0, 3"/>)" +
+        glass(eta) + "</shape>");
+    const Vec3d start(0.3, 4.0, 0.6);
+    const Vec3d x1 = Vec3d(Vec3d(0.25, 1.0, 0.0).normalized()) + Vec3d(0.0, 0.0, 0.4);
+    const auto normal = [](const Vec3d& p) { return Vec3d(p.x(), p.y(), 0.0); };
+    const Vec3d inside = refract((start - x1).normalized(), normal(x1), eta).normalized();
+    const Vec3d flat(inside.x(), inside.y(), 0.0);
+    const Vec3d x2 = x1 - 2.0 * normal(x1).dot(flat) / flat.squaredNorm() * inside;
+    const Vec3d out = refract(-inside, normal(x2), 1.0 / eta);
+    ASSERT_FALSE(out.isZero());
+    const Vec3d target = x2 + 2.0 * out.normalized();
+    const SpecularChain base = traced(scene, start, Vec3d(0.1, 0.9, 0.35),
+                                      {Scatter::Refraction, Scatter::Refraction}, 2.0);
+    const WalkResult r = walk_and_check(scene, base, target, {x1, x2}, 1e-8);
+    EXPECT_LE(r.iterations, 6);
+}
+
 TEST(ManifoldWalk, TangentMapMatchesFiniteDifferencesOfWalks) {
     // T_1 = d x_1 / d x_end from the block solve, against walks of the end by +-h: each walk to
     // 1e-13 of the chain length, h = 1e-6, so solver noise is ~1e-7 relative.
