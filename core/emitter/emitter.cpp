@@ -91,13 +91,12 @@ EnvmapData make_envmap_data(int width, int height, std::vector<Rgb> texels) {
     EnvmapData d;
     d.width = width;
     d.height = height;
-    d.texels = std::move(texels);
-    for (Rgb& t : d.texels)
+    for (Rgb& t : texels)
         t = t.max(0.f).unaryExpr([](float v) { return std::isfinite(v) ? v : 0.f; });
     d.padded_rows.reserve(static_cast<std::size_t>(width + 1) * static_cast<std::size_t>(height));
     for (int j = 0; j < height; ++j) {
         const Rgb* row =
-            d.texels.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(width);
+            texels.data() + static_cast<std::size_t>(j) * static_cast<std::size_t>(width);
         for (int i = 0; i <= width; ++i) {
             const Rgb& t = row[i < width ? i : 0];
             d.padded_rows.emplace_back(t.x(), t.y(), t.z(), 0.f);
@@ -107,7 +106,7 @@ EnvmapData make_envmap_data(int width, int height, std::vector<Rgb> texels) {
     // Sampling cells: a width x height grid over (u, v). The bilinear radiance is largest at
     // the corners of the pieces the cell overlaps, so the maximum over these u and v positions
     // is the exact maximum over the cell: no cell with light gets zero probability.
-    std::vector<float> weights(d.texels.size(), 0.f);
+    std::vector<float> weights(texels.size(), 0.f);
     double integral = 0.0;
     std::vector<float> vs;
     for (int j = 0; j < height; ++j) {

@@ -110,10 +110,10 @@ struct ConstantEmitter {
 struct EnvmapData {
     int width = 0;
     int height = 0;
-    std::vector<Rgb> texels;  // row-major, linear RGB
-    /// The texels again for lookup(): four floats each (SIMD arithmetic on whole texels), each
-    /// row followed by a copy of its first texel, so that a bilinear lookup's right-hand column
-    /// is always the next entry, across the wrap too.
+    /// The texels (row-major, linear RGB, negatives and non-finite values zeroed) for lookup():
+    /// four floats each (SIMD arithmetic on whole texels), each row followed by a copy of its
+    /// first texel, so that a bilinear lookup's right-hand column is always the next entry,
+    /// across the wrap too.
     std::vector<Eigen::Array4f> padded_rows;
     /// Importance sampling over (u, v) in [0, 1)^2: piecewise constant on a width x height grid,
     /// proportional to (largest radiance in the cell) x (mean sin(theta) over the cell).

@@ -57,27 +57,43 @@ std::vector<Vec3d> to_vectors(const std::vector<CgalPoint>& points) {
 
 /// tinyobjloader reads a malformed number ("nan", "1.0.0") as 0 without a word; the lines of
 /// vertex data are therefore checked first: every value a number, finite, read whole.
+/// The whitespace-separated tokens of one line of an OBJ or OFF file, comments (# to the end)
+/// removed: views into the text, no copies (check_obj_numbers runs over every line of a mesh).
+std::vector<std::string_view> line_tokens(std::string_view line) {
+    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos)
+        line = line.substr(0, hash);
+    std::vector<std::string_view> tokens;
+    std::size_t i = 0;
+    while (i < line.size()) {
+        while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i])) != 0) ++i;
+        const std::size_t start = i;
+        while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i])) == 0) ++i;
+        if (i > start) tokens.push_back(line.substr(start, i - start));
+    }
+    return tokens;
+}
+
 void check_obj_numbers(const std::string& text) {
     std::size_t line_number = 0;
     for (std::size_t start = 0; start < text.size();) {
         std::size_t end = text.find('\n', start);
         if (end == std::string::npos) end = text.size();
         ++line_number;
-        std::istringstream line(text.substr(start, end - start));
+        const std::vector<std::string_view> tokens =
+            line_tokens(std::string_view(text).substr(start, end - start));
         start = end + 1;
-        std::string keyword;
-        if (!(line >> keyword) || (keyword != "v" && keyword != "vt" && keyword != "vn")) continue;
-        std::string token;
-        while (line >> token) {
+        if (tokens.empty() || (tokens[0] != "v" && tokens[0] != "vt" && tokens[0] != "vn"))
+            continue;
+        for (std::size_t k = 1; k < tokens.size(); ++k) {
             double value = 0.0;
-            const char* first = token.data();
-            const char* last = first + token.size();
+            const char* first = tokens[k].data();
+            const char* last = first + tokens[k].size();
             // A leading '+' is valid OBJ; from_chars does not take it.
             if (first != last && *first == '+') ++first;
             const auto [stop, error] = std::from_chars(first, last, value);
             if (error != std::errc() || stop != last || !std::isfinite(value))
-                throw MeshReadError{"line " + std::to_string(line_number) + ": '" + token +
-                                    "' is not a finite number"};
+                throw MeshReadError{"line " + std::to_string(line_number) + ": '" +
+                                    std::string(tokens[k]) + "' is not a finite number"};
         }
     }
 }
@@ -166,21 +182,6 @@ PolygonSoup read_obj(std::istream& stream) {
     return soup;
 }
 
-/// The whitespace-separated tokens of one OFF line, comments (# to the end) removed.
-std::vector<std::string_view> off_tokens(std::string_view line) {
-    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos)
-        line = line.substr(0, hash);
-    std::vector<std::string_view> tokens;
-    std::size_t i = 0;
-    while (i < line.size()) {
-        while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i])) != 0) ++i;
-        const std::size_t start = i;
-        while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i])) == 0) ++i;
-        if (i > start) tokens.push_back(line.substr(start, i - start));
-    }
-    return tokens;
-}
-
 std::optional<long long> off_integer(std::string_view token) {
     long long value = 0;
     const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
@@ -200,7 +201,7 @@ void check_off_counts(const std::string& text) {
         std::size_t end = text.find('\n', start);
         if (end == std::string::npos) end = text.size();
         std::vector<std::string_view> tokens =
-            off_tokens(std::string_view(text).substr(start, end - start));
+            line_tokens(std::string_view(text).substr(start, end - start));
         if (!tokens.empty()) {
             lines.push_back(std::move(tokens));
             line_numbers.push_back(number);
