@@ -221,7 +221,8 @@ TEST(MeshIo, LoadsObjTriangles) {
     const TempDir dir;
     const std::string path = dir.write("tris.obj",
                                        "# two triangles\n"
-                                       "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+                                       "v 0 0 0 # a comment after the numbers\n"
+                                       "v 1 0 0\nv 0 1 0\nv 1 1 0\n"
                                        "vn 0 0 1\nvt 0 0\n"
                                        "f 1/1/1 2/1/1 3/1/1\n"
                                        "f 2 4 3\n");
