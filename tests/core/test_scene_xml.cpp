@@ -140,6 +140,30 @@ TEST(SceneXml, RotatesRightHandedAboutTheGivenAxis) {
     EXPECT_TRUE(apply_to_point(m, Vec3d(0, 1, 0)).isApprox(Vec3d(0, 0, 1), 1e-12));
 }
 
+TEST(SceneXml, ANonUnitRotationAxisIsTakenAsWrittenInVersion3AndNormalisedIn06) {
+    // Mitsuba 3 builds c I + (1 - c) a a^T + s [a]x from the axis as written (its hello.xml
+    // rotates about (0, 1, 1)). Reference: Mitsuba 3.9.1's ScalarTransform4f().rotate([0, 1, 1],
+    // 15), printed to 7 digits.
+    const Mat4d m = transform_of(R"(<rotate x="0" y="1" z="1" angle="15"/>)");
+    Eigen::Matrix3d mitsuba;
+    mitsuba << 0.9659258, -0.25881904, 0.25881904, 0.25881904, 1.0, 0.03407419, -0.25881904,
+        0.03407419, 1.0;
+    const Eigen::Matrix3d linear3 = m.topLeftCorner<3, 3>();
+    EXPECT_TRUE(linear3.isApprox(mitsuba, 1e-6)) << m;
+    // Mitsuba 0.6 normalised it: a rotation.
+    const SceneDesc legacy = parse_scene_string(
+        R"(<scene version="0.6.0"><shape type="sphere"><transform name="toWorld">
+           <rotate x="0" y="1" z="1" angle="15"/></transform></shape></scene>)",
+        "t.xml");
+    const Mat4d r =
+        property_value<TransformValue>(first_child(legacy, legacy.root_object()), "to_world")
+            .matrix;
+    const Eigen::Matrix3d linear = r.topLeftCorner<3, 3>();
+    const bool orthonormal = (linear.transpose() * linear).isIdentity(1e-12);
+    EXPECT_TRUE(orthonormal) << linear;
+    EXPECT_NEAR(linear.determinant(), 1.0, 1e-12);
+}
+
 TEST(SceneXml, ReadsMatrixValuesRowMajor) {
     const Mat4d m = transform_of(R"(<matrix value="1 0 0 7  0 1 0 8  0 0 1 9  0 0 0 1"/>)");
     EXPECT_TRUE(apply_to_point(m, Vec3d::Zero()).isApprox(Vec3d(7, 8, 9)));
