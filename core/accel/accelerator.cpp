@@ -98,14 +98,20 @@ void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
 // t), the unit circle's quadratic in double precision, the nearer root whose height is within
 // [0, 1] (the cylinder is open: a ray can enter through an end and leave through the wall).
 
-void cylinder_bounds(const RTCBoundsFunctionArguments* args) {
-    const auto& c = *static_cast<const Cylinder*>(args->geometryUserPtr);
+/// World bounds of the cylinder: its object-space box [-1, 1]^2 x [0, 1] mapped.
+Eigen::AlignedBox3f cylinder_box(const Cylinder& c) {
     Eigen::AlignedBox3f box;
     for (int corner = 0; corner < 8; ++corner) {
         const Vec3f local((corner & 1) ? 1.f : -1.f, (corner & 2) ? 1.f : -1.f,
                           (corner & 4) ? 1.f : 0.f);
         box.extend(c.origin + c.linear * local);
     }
+    return box;
+}
+
+void cylinder_bounds(const RTCBoundsFunctionArguments* args) {
+    const Eigen::AlignedBox3f box =
+        cylinder_box(*static_cast<const Cylinder*>(args->geometryUserPtr));
     RTCBounds& b = *args->bounds_o;
     b.lower_x = box.min().x();
     b.lower_y = box.min().y();
@@ -214,10 +220,7 @@ Accelerator::Accelerator(const std::vector<Shape>& shapes) : impl_(std::make_uni
             rtcSetGeometryBoundsFunction(geometry, cylinder_bounds, nullptr);
             rtcSetGeometryIntersectFunction(geometry, cylinder_intersect);
             rtcSetGeometryOccludedFunction(geometry, cylinder_occluded);
-            for (int corner = 0; corner < 8; ++corner)
-                bounds_.extend(c.origin + c.linear * Vec3f((corner & 1) ? 1.f : -1.f,
-                                                           (corner & 2) ? 1.f : -1.f,
-                                                           (corner & 4) ? 1.f : 0.f));
+            bounds_.extend(cylinder_box(c));
         } else {
             // A sphere is a user geometry with our own intersection (sphere_intersect.h), not
             // Embree's RTC_GEOMETRY_TYPE_SPHERE_POINT, which runs through the curve machinery:

@@ -891,6 +891,11 @@ struct Builder {
         return model;
     }
 
+    /// The BSDF plugins built as Bsdf composites (wrappers of other BSDFs).
+    static bool is_composite_bsdf_type(const std::string& type) {
+        return type == "mask" || type == "blendbsdf" || type == "null" || type == "normalmap";
+    }
+
     /// Mitsuba's `mask`, `blendbsdf`, `null` and `normalmap` (see Bsdf's composites).
     Bsdf build_composite_bsdf(const ObjectDesc& obj) {
         Properties props(obj, diagnostics);
@@ -927,9 +932,7 @@ struct Builder {
     }
 
     Bsdf build_bsdf(const ObjectDesc& obj) {
-        if (obj.type == "mask" || obj.type == "blendbsdf" || obj.type == "null" ||
-            obj.type == "normalmap")
-            return build_composite_bsdf(obj);
+        if (is_composite_bsdf_type(obj.type)) return build_composite_bsdf(obj);
         if (obj.type != "twosided") return Bsdf(build_bsdf_model(obj));
         Properties(obj, diagnostics).check_all_used();
         std::vector<BsdfModel> nested;
@@ -937,8 +940,7 @@ struct Builder {
             const ObjectDesc& c = object(child.object);
             if (c.tag != "bsdf") throw InputError(c.loc, "twosided expects nested <bsdf> elements");
             if (c.type == "twosided") throw InputError(c.loc, "twosided cannot nest twosided");
-            if (c.type == "mask" || c.type == "blendbsdf" || c.type == "null" ||
-                c.type == "normalmap")
+            if (is_composite_bsdf_type(c.type))
                 throw InputError(c.loc, "twosided cannot wrap " + c.type +
                                             " (write the twosided inside the " + c.type + ")");
             nested.push_back(build_bsdf_model(c));
