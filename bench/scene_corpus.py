@@ -200,6 +200,15 @@ def main():
                 else:
                     row["rel_mse"] = metrics.rel_mse(a, b)
                     row["mean_ratio"] = float(a.mean() / b.mean()) if b.mean() > 0 else None
+        elif runner is not None and row["status"] == "error":
+            # Does Mitsuba 3 load it? A scene it cannot load either (a mesh its own folders do
+            # not hold: docs scenes written for the documentation script's search paths) does
+            # not render as written anywhere.
+            reply = runner.load(scene, {"spp": str(args.spp)}, fallback=False)
+            if "error" in reply and "unused parameters" in reply["error"]:
+                reply = runner.load(scene, {}, fallback=False)
+            if "error" in reply:
+                row["mitsuba_error"] = reply["error"].splitlines()[0]
         rows.append(row)
         print(f"[{index + 1}/{len(scenes)}] {name}: {row['status']}"
               + (f" ({row.get('plugin') or row.get('message')})" if row["status"] != "renders" else "")
@@ -213,11 +222,13 @@ def main():
     counts = {k: sum(r["status"] == k for r in rows) for k in ("renders", "out of scope", "error")}
     compared = [r for r in rows if r.get("mean_ratio")]
     within = sum(abs(r["mean_ratio"] - 1.0) <= 0.02 for r in compared)
+    both_fail = sum(r["status"] == "error" and "mitsuba_error" in r for r in rows)
     lines = [f"Scenes under {args.directory}: {len(scenes)} stand-alone ({parts} parts left out), "
              f"{counts['renders']} render, {counts['out of scope']} out of scope, "
-             f"{counts['error']} errors" + (f"; {within} of {len(compared)} compared within 2% "
-                                            f"of Mitsuba 3's mean at {args.spp} spp"
-                                            if runner is not None else "") + ".", "",
+             f"{counts['error']} errors" +
+             (f" ({both_fail} of which Mitsuba 3 cannot load either); {within} of "
+              f"{len(compared)} compared within 2% of Mitsuba 3's mean at {args.spp} spp"
+              if runner is not None else "") + ".", "",
              "| scene | result | relMSE | mean ratio |", "|---|---|---|---|"]
     for r in rows:
         result = r["status"] if r["status"] == "renders" else \
@@ -234,6 +245,7 @@ def main():
     with open(os.path.join(args.out, "scene_corpus.json"), "w") as f:
         json.dump({"directory": args.directory, "spp": args.spp, "seeds": args.seeds,
                    "counts": counts, "compared": len(compared), "within_2_percent": within,
+                   "errors_mitsuba_fails_too": both_fail,
                    "scenes": rows}, f, indent=1)
     return 0
 

@@ -798,6 +798,8 @@ int run_render(const RenderOptions& options) {
         {"applied", film_filter.is_box() ? "pixel"
                     : gradient_domain    ? "image convolution after the reconstruction"
                                          : "sampled and splatted"}};
+    // Which camera ran (and, for the thin lens, that its rays draw two more numbers).
+    config["camera"] = projection_name(scene.camera().projection());
     config["scene"] = options.scene_path;
     config["threads"] = threads;
     config["defines"] = options.defines;

@@ -402,7 +402,8 @@ void shift_path(const Scene& scene, const Path& base, const Vec2f& film_offset, 
     }
     Path& y = result.offset;
     y.film_position = base.film_position + film_offset;
-    Ray ray = scene.camera().generate_ray(y.film_position);
+    y.lens_sample = base.lens_sample;
+    Ray ray = scene.camera().generate_ray(y.film_position, y.lens_sample);
     y.camera_position = ray.origin;
     y.camera_direction = ray.direction;
 

@@ -43,18 +43,19 @@ Path truncated(const Path& path, int vertex_count) {
 }
 
 /// Light tracing strategy (s, 1) of `light` written as a camera path: vertex 0 the one the
-/// pinhole sees at `film_position`, the last the point on the area light, without random
-/// numbers. False where the shift cannot take it: a light at infinity or with a delta
-/// position or direction, or a vertex scattered through a delta lobe of a BSDF that also has
-/// others (its lobe could not be told from geometry). Both depend only on what a shift keeps,
-/// so base and offset are treated alike.
+/// camera sees at the connection `c`'s film position, through the lens point `u_lens` gives, the
+/// last the point on the area light, without random numbers. False where the shift cannot take it:
+/// a light at infinity or with a delta position or direction, or a vertex scattered through a delta
+/// lobe of a BSDF that also has others (its lobe could not be told from geometry). Both depend only
+/// on what a shift keeps, so base and offset are treated alike.
 bool light_path_in_camera_order(const Scene& scene, const std::vector<BdptVertex>& light, int s,
-                                const Vec2f& film_position, Path& path) {
+                                const BdptConnection& c, const Vec2f& u_lens, Path& path) {
     const BdptVertex& origin = light[0];
     if (origin.at_infinity || origin.delta_light || origin.emitter < 0 || s < 2) return false;
     path.vertices.clear();
-    path.film_position = film_position;
-    path.camera_position = scene.camera().position();
+    path.film_position = c.film_position;
+    path.lens_sample = u_lens;
+    path.camera_position = c.camera_position;
     path.camera_direction =
         (light[static_cast<std::size_t>(s - 1)].p - path.camera_position).normalized();
     path.escaped = false;
@@ -128,12 +129,13 @@ PathValue camera_order_value(const Scene& scene, const Path& path) {
 /// neighbours of the pixel it lands on (BidirectionalGradientSample). False when it stays
 /// unshifted.
 bool shift_light_tracing(const Scene& scene, const std::vector<BdptVertex>& light, int s,
-                         const BdptConnection& c, const Rgb& value, manifold::ShiftKind shift,
-                         float light_tracing_scale, const NeighbourSet& neighbours,
-                         BidirectionalGradientScratch& scratch, BidirectionalGradientSample& out,
-                         PathCounters& counters, manifold::ShiftCounters& shift_counters) {
+                         const BdptConnection& c, const Vec2f& u_lens, const Rgb& value,
+                         manifold::ShiftKind shift, float light_tracing_scale,
+                         const NeighbourSet& neighbours, BidirectionalGradientScratch& scratch,
+                         BidirectionalGradientSample& out, PathCounters& counters,
+                         manifold::ShiftCounters& shift_counters) {
     Path& base = scratch.light_path;
-    if (!light_path_in_camera_order(scene, light, s, c.film_position, base)) return false;
+    if (!light_path_in_camera_order(scene, light, s, c, u_lens, base)) return false;
     ++counters.bounce_rays;  // the ray that found the light's point
     const Film& film = scene.camera().film();
     const std::uint32_t pixel = crop_pixel_index(film, c.film_position);
@@ -157,8 +159,10 @@ bool shift_light_tracing(const Scene& scene, const std::vector<BdptVertex>& ligh
             const PathValue y_value = camera_order_value(scene, y);
             // The shared light point: its forward density is the base's (same origin).
             light_subpath_from_path(scene, light[0], y, scratch.offset_light);
-            const float weight = light_tracing_mis_weight(scene, scratch.offset_light, s, true,
-                                                          light_tracing_scale, scratch.bdpt);
+            const float weight = light_tracing_mis_weight(
+                scene, scratch.offset_light, s,
+                scene.camera().camera_end(y.camera_position, y.lens_sample), true,
+                light_tracing_scale, scratch.bdpt);
             const double j = std::exp(log_j);
             rho = y_value.pdf * j / x_value.pdf;
             for (int ch = 0; ch < 3; ++ch)
@@ -294,7 +298,10 @@ void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_positi
     // 1. The two subpaths, in fixed blocks of numbers.
     CountingStream counting(stream);
     const Path base = sample_camera_path(scene, film_position, counting, path, counters);
-    stream.skip(static_cast<std::size_t>(kDimensionsPerBounce) *
+    // The block: the thin lens's two numbers (when the camera has a lens), then the vertices'.
+    const std::size_t lens_numbers = scene.camera().needs_lens_sample() ? 2 : 0;
+    stream.skip(lens_numbers +
+                static_cast<std::size_t>(kDimensionsPerBounce) *
                     static_cast<std::size_t>(max_depth) -
                 counting.read());
     std::vector<BdptVertex>& light = scratch.bdpt.light;
@@ -313,6 +320,7 @@ void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_positi
     BdptConnectionInput in;
     in.light = &light;
     in.light_tracing_scale = options.light_tracing_scale;
+    in.u_lens = base.lens_sample;  // light tracing connects to the base's lens point
     const auto n_camera = static_cast<int>(scratch.base_camera.size());
     const auto n_light = static_cast<int>(light.size());
     // The camera prefix of strategy t ends at path vertex t - 2; s = 1 uses its light sample.
@@ -346,7 +354,7 @@ void sample_bidirectional_gradients(const Scene& scene, const Vec2f& film_positi
             }
             if (is_black(value)) continue;
             if (t == 1) {
-                if (!neighbours || !shift_light_tracing(scene, light, s, c, value, shift,
+                if (!neighbours || !shift_light_tracing(scene, light, s, c, in.u_lens, value, shift,
                                                         options.light_tracing_scale, *neighbours,
                                                         scratch, out, counters, shift_counters))
                     out.light_splats.push_back({c.film_position, value});

@@ -29,7 +29,8 @@ class PathTracerTarget final : public ChainTarget {
 
     void evaluate(SampleStream& stream, ChainState& state, ChainCounters& counters) const override {
         const FilmSample where = film_sample(scene_.camera().film(), stream);
-        const Ray ray = scene_.camera().generate_ray(where.film_position);
+        const Ray ray = scene_.camera().generate_ray(where.film_position,
+                                                     draw_lens_sample(scene_.camera(), stream));
         const Rgb radiance = sample_path_radiance(scene_, ray, stream, path_, counters.paths);
         const double lum = static_cast<double>(luminance(radiance));
         if (!is_finite(radiance) || !std::isfinite(lum)) {

@@ -65,7 +65,7 @@ struct SpotEmitter {
 /// towards a direction at angle theta from the axis is pi scale E(uv) / cos^3(theta) (Mitsuba
 /// 3's projector.cpp: its radiance pi E / (z^2 cos) at a point of camera depth z).
 struct ProjectorEmitter {
-    PerspectiveCamera camera;  // the projection: film = the texture's pixels, crop = all of it
+    Camera camera;  // the projection: film = the texture's pixels, crop = all of it
     RgbTexture irradiance{Rgb::Ones()};
     float scale = 1.f;
     Vec3f axis = Vec3f::UnitZ();  // unit world direction of the optical axis

@@ -27,6 +27,14 @@ struct Transform {
     Vec3f apply_vector(const Vec3f& v) const {
         return apply_vector(Vec3d(v.cast<double>())).cast<float>();
     }
+    /// The inverse map, from world to this transform's space (cameras project through it).
+    Vec3f apply_inverse_point(const Vec3f& p) const {
+        const Vec3d q = p.cast<double>();
+        return (inverse.topLeftCorner<3, 3>() * q + inverse.topRightCorner<3, 1>()).cast<float>();
+    }
+    Vec3f apply_inverse_vector(const Vec3f& v) const {
+        return (inverse.topLeftCorner<3, 3>() * v.cast<double>()).cast<float>();
+    }
     Vec3f apply_normal(const Vec3f& n) const {
         return apply_normal(Vec3d(n.cast<double>())).normalized().cast<float>();
     }

@@ -83,6 +83,18 @@ Rgb vertex_f(const Scene& scene, const BdptVertex& v, const Vec3f& wi, Transport
     return f;
 }
 
+/// Density of `next` as the camera vertex `v` (its end of the ray: Camera::pdf_area) samples
+/// it, area measure (solid angle for a vertex at infinity).
+float camera_vertex_pdf(const Scene& scene, const BdptVertex& v, const BdptVertex& next) {
+    const Camera& camera = scene.camera();
+    if (camera.projection() == Projection::Pinhole)
+        return to_area(camera.pdf_direction_solid_angle(direction(v, next)), v, next);
+    // The other cameras know their own measure (the orthographic camera's parallel rays have
+    // no solid angle).
+    return next.at_infinity ? camera.pdf_area(v.p, v.p, -next.travel, true)
+                            : camera.pdf_area(v.p, next.p, next.n_geometric);
+}
+
 /// Density of `next` sampled from `v`, which its subpath reached from `prev` (area measure at
 /// `next`). `prev` is unused for the pinhole and for light origins.
 float vertex_pdf(const Scene& scene, const BdptVertex& v, const BdptVertex* prev,
@@ -90,7 +102,7 @@ float vertex_pdf(const Scene& scene, const BdptVertex& v, const BdptVertex* prev
     const Vec3f w = direction(v, next);
     switch (v.kind) {
         case BdptVertex::Kind::Camera:
-            return to_area(scene.camera().pdf_direction_solid_angle(w), v, next);
+            return camera_vertex_pdf(scene, v, next);
         case BdptVertex::Kind::Light:
             return light_next_pdf(scene, v, next);
         case BdptVertex::Kind::Surface: {
@@ -195,15 +207,17 @@ std::size_t random_walk(const Scene& scene, Ray ray, Rgb beta, float pdf_directi
 
 /// `block_vertices`: the largest camera subpath of the settings, which sizes the stream block
 /// (a single-strategy sample stops at `max_vertices` but keeps the layout).
-void camera_subpath(const Scene& scene, const Vec2f& film_position, SampleStream& stream,
-                    int max_vertices, int block_vertices, int rr_depth,
+void camera_subpath(const Scene& scene, const Vec2f& film_position, const Vec2f& u_lens,
+                    SampleStream& stream, int max_vertices, int block_vertices, int rr_depth,
                     std::vector<BdptVertex>& path, PathCounters& counters) {
     path.clear();
-    const PerspectiveCamera& camera = scene.camera();
-    const Ray ray = camera.generate_ray(film_position);
+    const Camera& camera = scene.camera();
+    const Ray ray = camera.generate_ray(film_position, u_lens);
     BdptVertex c;
     c.kind = BdptVertex::Kind::Camera;
-    c.p = camera.position();
+    // The camera's end of the ray: the pinhole, the lens point, or the orthographic ray's
+    // origin (Camera::pdf_area reads any point of its ray).
+    c.p = camera.camera_end(ray.origin, u_lens);
     c.beta = Rgb::Ones();  // W / p of the film position: 1 with the per-pixel density W
     path.push_back(c);
     ++counters.camera_rays;
@@ -211,6 +225,9 @@ void camera_subpath(const Scene& scene, const Vec2f& film_position, SampleStream
     const std::size_t read =
         random_walk(scene, ray, Rgb::Ones(), camera.pdf_direction_solid_angle(ray.direction),
                     TransportMode::Radiance, stream, max_vertices, rr_depth, path, counters);
+    // The first vertex's density as the camera has it (the walk converted the pinhole's).
+    if (camera.projection() != Projection::Pinhole && path.size() > 1)
+        path[1].pdf_fwd = camera_vertex_pdf(scene, path[0], path[1]);
     // The camera's block has a fixed size: the light subpath's numbers keep their coordinates.
     stream.skip(static_cast<std::size_t>(kBdptCameraDimensions) *
                     static_cast<std::size_t>(std::max(block_vertices - 1, 0)) -
@@ -334,7 +351,7 @@ BdptConnection connect_bdpt(const Scene& scene, const BdptConnectionInput& in, B
     const std::vector<BdptVertex>& camera = *in.camera;
     const std::vector<BdptVertex>& light = *in.light;
     const int s = in.s, t = in.t;
-    const PerspectiveCamera& cam = scene.camera();
+    const Camera& cam = scene.camera();
     BdptConnection out;
     Rgb contribution = Rgb::Zero();
     BdptVertex sampled;
@@ -350,27 +367,27 @@ BdptConnection connect_bdpt(const Scene& scene, const BdptConnectionInput& in, B
         // Light tracing: a light vertex seen by the pinhole, splatted where it lands.
         const BdptVertex& qs = light[static_cast<std::size_t>(s - 1)];
         if (qs.at_infinity || qs.delta_light || !connectible(scene, qs)) return out;
-        const CameraConnection c = cam.connect(qs.p);
+        const CameraConnection c = cam.connect(qs.p, in.u_lens);
         if (!c.valid()) return out;
         const Vec3f to_camera = -c.direction;
-        const float distance2 = c.distance * c.distance;
         if (qs.is_surface()) {
-            contribution = qs.beta * vertex_f(scene, qs, to_camera, TransportMode::Importance) *
-                           (c.importance / distance2);
+            contribution =
+                qs.beta * vertex_f(scene, qs, to_camera, TransportMode::Importance) * c.weight;
         } else {
             // An area light's point (diffuse emission, front side only).
             const float cos_light = qs.n_geometric.dot(to_camera);
             if (!(cos_light > 0.f)) return out;
-            contribution = qs.beta * (cos_light * c.importance / distance2);
+            contribution = qs.beta * (cos_light * c.weight);
         }
         if (is_black(contribution)) return out;
         ++counters.shadow_rays;
-        if (scene.occluded(spawn_ray_to(qs.p, qs.n_geometric, cam.position(), Vec3f::Zero())))
+        if (scene.occluded(spawn_ray_to(qs.p, qs.n_geometric, c.position, Vec3f::Zero())))
             return out;
         sampled.kind = BdptVertex::Kind::Camera;
-        sampled.p = cam.position();
+        sampled.p = c.position;
         use_sampled = true;
         out.film_position = c.film_position;
+        out.camera_position = c.position;
     } else if (s == 1) {
         // Next-event estimation: a point on a light, chosen as the light subpath chooses its
         // origin (same emitter choice, uniform by area), or the one given.
@@ -442,9 +459,11 @@ void camera_subpath_from_path(const Scene& scene, const Path& path, int vertex_c
     out.clear();
     const auto n = static_cast<std::size_t>(
         std::clamp(vertex_count, 0, static_cast<int>(path.vertices.size())));
+    const Camera& camera = scene.camera();
     BdptVertex c;
     c.kind = BdptVertex::Kind::Camera;
-    c.p = path.camera_position;
+    // As camera_subpath's: the lens point, not the ray's origin on the near clip plane.
+    c.p = camera.camera_end(path.camera_position, path.lens_sample);
     c.beta = Rgb::Ones();
     out.push_back(c);
     // The direction leaving the previous vertex: its f / pdf for the throughput, its density
@@ -462,7 +481,9 @@ void camera_subpath_from_path(const Scene& scene, const Path& path, int vertex_c
         v.wo = (out.back().p - pv.si.p).normalized();
         v.beta = beta;
         v.emitter = scene.shapes()[static_cast<std::size_t>(pv.si.shape)].emitter();
-        v.pdf_fwd = to_area(pdf_direction, out.back(), v);
+        v.pdf_fwd = k == 0 && camera.projection() != Projection::Pinhole
+                        ? camera_vertex_pdf(scene, out.back(), v)
+                        : to_area(pdf_direction, out.back(), v);
         v.delta = pv.continued && pv.delta;
         out.push_back(v);
         if (!pv.continued) break;
@@ -519,15 +540,15 @@ void light_subpath_from_path(const Scene& scene, const BdptVertex& origin, const
 }
 
 float light_tracing_mis_weight(const Scene& scene, const std::vector<BdptVertex>& light, int s,
-                               bool power_heuristic, float light_tracing_scale,
-                               BdptScratch& scratch) {
-    BdptVertex pinhole;
-    pinhole.kind = BdptVertex::Kind::Camera;
-    pinhole.p = scene.camera().position();
-    // With t = 1 the weight reads camera vertex 0 only, and that is `pinhole`: no camera
+                               const Vec3f& camera_p, bool power_heuristic,
+                               float light_tracing_scale, BdptScratch& scratch) {
+    BdptVertex lens;
+    lens.kind = BdptVertex::Kind::Camera;
+    lens.p = camera_p;
+    // With t = 1 the weight reads camera vertex 0 only, and that is `lens`: no camera
     // subpath (this runs per light tracing term and link, so no allocation either).
     static const std::vector<BdptVertex> kNoCameraSubpath;
-    return mis_weight(scene, light, kNoCameraSubpath, nullptr, &pinhole, s, 1, power_heuristic,
+    return mis_weight(scene, light, kNoCameraSubpath, nullptr, &lens, s, 1, power_heuristic,
                       light_tracing_scale, scratch.light_mis, scratch.camera_mis);
 }
 
@@ -549,8 +570,11 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
     const int camera_rr_depth = settings.rr_depth < std::numeric_limits<int>::max()
                                     ? settings.rr_depth + 1
                                     : settings.rr_depth;
-    camera_subpath(scene, film_position, camera_stream, max_camera, camera_block, camera_rr_depth,
-                   scratch.camera, counters);
+    // The thin lens's point comes first in the camera's stream (no numbers for other cameras);
+    // light tracing (t = 1) connects to the same point.
+    const Vec2f u_lens = draw_lens_sample(scene.camera(), camera_stream);
+    camera_subpath(scene, film_position, u_lens, camera_stream, max_camera, camera_block,
+                   camera_rr_depth, scratch.camera, counters);
     light_subpath(scene, light_stream, max_light, settings.rr_depth, scratch.light, counters);
     ++counters.paths;
     BdptConnectionInput in;
@@ -559,6 +583,7 @@ void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& c
     in.mis = !only || settings.weight_only;
     in.power_heuristic = settings.power_heuristic;
     in.light_tracing_scale = settings.light_tracing_scale;
+    in.u_lens = u_lens;
     const int n_camera = static_cast<int>(scratch.camera.size());
     const int n_light = static_cast<int>(scratch.light.size());
     for (int t = 1; t <= n_camera; ++t) {

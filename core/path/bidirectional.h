@@ -122,6 +122,8 @@ struct BdptConnection {
     float weight = 0.f;
     /// t = 1: where on the film (full-film pixels) the light subpath's vertex is seen.
     Vec2f film_position = Vec2f::Zero();
+    /// t = 1: the camera's end it is seen from (CameraConnection::position).
+    Vec3f camera_position = Vec3f::Zero();
 };
 
 /// What strategy (s, t) connects: the first t vertices of `camera` (vertex 0 the pinhole) and
@@ -139,6 +141,9 @@ struct BdptConnectionInput {
     /// > 0: the MIS weights use c p in place of light tracing's density p (Veach 1997,
     /// sec. 9.2: weights that sum to one over a path's strategies stay unbiased). 1: plain MIS.
     float light_tracing_scale = 1.f;
+    /// t = 1: the lens point of a thin-lens camera the light vertex connects to (the camera
+    /// subpath's own, Camera::draw_lens_sample), unread by the other cameras.
+    Vec2f u_lens = Vec2f(0.5f, 0.5f);
 };
 
 /// Evaluates one strategy: the connection of sample_bdpt, shared with the gradient-domain
@@ -170,10 +175,10 @@ void light_subpath_from_path(const Scene& scene, const BdptVertex& origin, const
                              std::vector<BdptVertex>& out);
 
 /// The MIS weight of light tracing, strategy (s, 1), for the path of light subpath vertices
-/// 0 .. s-1 seen from the pinhole.
+/// 0 .. s-1 seen from the camera's end `camera_p` (CameraConnection::position).
 float light_tracing_mis_weight(const Scene& scene, const std::vector<BdptVertex>& light, int s,
-                               bool power_heuristic, float light_tracing_scale,
-                               BdptScratch& scratch);
+                               const Vec3f& camera_p, bool power_heuristic,
+                               float light_tracing_scale, BdptScratch& scratch);
 
 /// One bidirectional sample through `film_position` (full-film pixels).
 void sample_bdpt(const Scene& scene, const Vec2f& film_position, SampleStream& camera_stream,

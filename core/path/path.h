@@ -46,7 +46,10 @@ struct PathVertex {
 
 struct Path {
     Vec2f film_position = Vec2f::Zero();
-    Vec3f camera_position = Vec3f::Zero();
+    /// The thin lens's sample (Camera::draw_lens_sample): offsets keep it, so a shift moves
+    /// the film position only, as with the pinhole.
+    Vec2f lens_sample = Vec2f(0.5f, 0.5f);
+    Vec3f camera_position = Vec3f::Zero();  // the camera ray's origin
     Vec3f camera_direction = Vec3f::UnitZ();
     std::vector<PathVertex> vertices;  // surface vertices x_1 .. x_n in order
     /// The last continuation escaped the scene (environment light) in this direction.

@@ -32,7 +32,8 @@ void sample_camera_path(const Scene& scene, const Vec2f& film_position, SampleSt
         settings.max_depth > 0 ? std::min(settings.max_depth, kReservedVertices)
                                : kReservedVertices));
     path.film_position = film_position;
-    Ray ray = scene.camera().generate_ray(film_position);
+    path.lens_sample = draw_lens_sample(scene.camera(), stream);
+    Ray ray = scene.camera().generate_ray(film_position, path.lens_sample);
     path.camera_position = ray.origin;
     path.camera_direction = ray.direction;
     ++counters.paths;

@@ -67,9 +67,9 @@ std::vector<ExrLayer> render_aovs(const Scene& scene, const std::vector<AovReque
     passes.seed = derive_stream(seed, kAovStreams);
     run_pixel_passes(
         film, passes, cancel,
-        [&](int x, int y, const Vec2f& film_position, IndependentStream&) {
-            const SurfaceInteraction si =
-                scene.intersect(scene.camera().generate_ray(film_position));
+        [&](int x, int y, const Vec2f& film_position, IndependentStream& stream) {
+            const SurfaceInteraction si = scene.intersect(scene.camera().generate_ray(
+                film_position, draw_lens_sample(scene.camera(), stream)));
             // A pixel's samples arrive on one thread: a running mean per pixel.
             const std::uint32_t n = ++counts[static_cast<std::size_t>(y) * width + x];
             for (std::size_t k = 0; k < requests.size(); ++k) {

@@ -35,14 +35,16 @@ struct FeatureSample {
 /// The features of one camera path: follows delta vertices (along their likelier lobe) up to
 /// `max_specular_bounces` times and describes the first other vertex. Three stream dimensions per
 /// vertex (lobe, direction), used or not, so that a sample's decisions depend only on its stream.
-FeatureSample sample_features(const Scene& scene, const Ray& camera_ray, IndependentStream& stream,
-                              int max_specular_bounces, PathCounters& counters) {
+FeatureSample sample_features(const Scene& scene, const Ray& camera_ray, const Vec3f& camera_end,
+                              IndependentStream& stream, int max_specular_bounces,
+                              PathCounters& counters) {
     ++counters.paths;
     ++counters.camera_rays;
     Ray ray = camera_ray;
     // The camera ray starts at the near clip plane; the depth is measured from the camera
-    // position, so the first segment is measured from there too.
-    Vec3f previous_p = scene.camera().position();
+    // (Camera::camera_end: the pinhole, the lens point, the orthographic ray's origin), so the
+    // first segment is measured from there too.
+    Vec3f previous_p = camera_end;
     float path_length = 0.f;
     for (int bounce = 0;; ++bounce) {
         if (bounce > 0) ++counters.bounce_rays;
@@ -131,8 +133,11 @@ FeatureImages render_features(const Scene& scene, const FeatureSettings& setting
     const PixelPassResult done = run_pixel_passes(
         film, passes, cancel,
         [&](int x, int y, const Vec2f& film_position, IndependentStream& stream) {
+            const Camera& camera = scene.camera();
+            const Vec2f u_lens = draw_lens_sample(camera, stream);
+            const Ray ray = camera.generate_ray(film_position, u_lens);
             const FeatureSample f =
-                sample_features(scene, scene.camera().generate_ray(film_position), stream,
+                sample_features(scene, ray, camera.camera_end(ray.origin, u_lens), stream,
                                 max_specular_bounces, counters.local());
             // A pixel's samples arrive in index order on one thread, so the first to arrive is
             // sample 0.

@@ -202,19 +202,28 @@ struct Wavefront {
     /// a double-precision rotation and two square roots per path, all latency-bound):
     /// each path's stream (after its two jitter draws) and camera ray are those of
     /// pixel_sample(film, seed, x, y, sample) and generate_ray, bit for bit.
-    void start(const PerspectiveCamera& camera, std::uint64_t seed, PathCounters& counters) {
+    void start(const Camera& camera, std::uint64_t seed, PathCounters& counters) {
         const Film& film = camera.film();
         const std::size_t count = lanes.size();
         streams.seed_samples(count, seed, pixel_keys, sample_keys);
-        streams.next_floats(count, 2, numbers);  // the jitter: pixel_sample's next_2d
+        // The jitter (pixel_sample's next_2d), then a thin lens's sample (draw_lens_sample).
+        const bool lens = camera.needs_lens_sample();
+        streams.next_floats(count, lens ? 4 : 2, numbers);
         for (std::size_t i = 0; i < count; ++i) {
             const Vec2f position =
                 jittered_film_position(film, lanes[i].x, lanes[i].y, numbers[0][i], numbers[1][i]);
             film_x[i] = position.x();
             film_y[i] = position.y();
         }
-        camera.generate_rays(std::span(film_x.data(), count), std::span(film_y.data(), count),
-                             queued_rays);
+        if (camera.projection() == Projection::Pinhole) {
+            camera.generate_rays(std::span(film_x.data(), count), std::span(film_y.data(), count),
+                                 queued_rays);
+        } else {
+            for (std::size_t i = 0; i < count; ++i)
+                queued_rays[i] = camera.generate_ray(
+                    Vec2f(film_x[i], film_y[i]),
+                    lens ? Vec2f(numbers[2][i], numbers[3][i]) : Vec2f(0.5f, 0.5f));
+        }
         for (std::size_t i = 0; i < count; ++i)
             lanes[i].state = start_path(queued_rays[i], counters);
     }

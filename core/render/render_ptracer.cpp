@@ -58,6 +58,8 @@ class LightTracer {
         ++out.counters.paths;
         static const std::vector<BdptVertex> kNoCameraSubpath;
         BdptConnectionInput in;
+        // One lens point per light path (thin lens; unbiased, as each is uniform on the lens).
+        in.u_lens = draw_lens_sample(scene_.camera(), stream);
         in.camera = &kNoCameraSubpath;
         in.light = &scratch.light;
         in.t = 1;
@@ -169,7 +171,8 @@ RenderOutput render_ptracer(const Scene& scene, const RenderSettings& settings,
                     const Vec2f jitter = stream.next_2d();
                     const Ray ray = scene.camera().generate_ray(
                         jittered_film_position(film, x - film.crop_offset_x, y - film.crop_offset_y,
-                                               jitter.x(), jitter.y()));
+                                               jitter.x(), jitter.y()),
+                        draw_lens_sample(scene.camera(), stream));
                     if (!scene.intersect(ray).valid())
                         environment_sums[pixel] += scene.environment(ray.direction).cast<double>();
                 }

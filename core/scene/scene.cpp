@@ -6,7 +6,7 @@
 namespace gdmlt {
 
 Scene::Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emitter> emitters,
-             PerspectiveCamera camera, IntegratorSettings integrator, SamplerSettings sampler,
+             Camera camera, IntegratorSettings integrator, SamplerSettings sampler,
              SceneFeatures features, std::map<std::string, std::size_t> counts)
     : shapes_(std::move(shapes)),
       bsdfs_(std::move(bsdfs)),

@@ -113,13 +113,13 @@ struct EmissionPdf {
 class Scene {
   public:
     Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emitter> emitters,
-          PerspectiveCamera camera, IntegratorSettings integrator, SamplerSettings sampler,
+          Camera camera, IntegratorSettings integrator, SamplerSettings sampler,
           SceneFeatures features, std::map<std::string, std::size_t> counts);
 
     const std::vector<Shape>& shapes() const { return shapes_; }
     const std::vector<Bsdf>& bsdfs() const { return bsdfs_; }
     const std::vector<Emitter>& emitters() const { return emitters_; }
-    const PerspectiveCamera& camera() const { return camera_; }
+    const Camera& camera() const { return camera_; }
     /// Renders with another reconstruction filter than the file's: the gradient-domain
     /// integrators sample with the box filter and filter their reconstructed image afterwards.
     void set_film_filter(const PixelFilter& filter) { camera_.set_film_filter(filter); }
@@ -262,7 +262,7 @@ class Scene {
     /// the others).
     std::vector<EmitterTriangle> emitter_triangles_;
     std::vector<std::int64_t> first_emitter_triangle_;
-    PerspectiveCamera camera_;
+    Camera camera_;
     IntegratorSettings integrator_;
     SamplerSettings sampler_;
     SceneFeatures features_;

@@ -257,7 +257,7 @@ struct Builder {
     std::vector<Emitter> emitters;
     std::map<int, int> bsdf_of_object;   // SceneDesc object index -> bsdfs index
     std::vector<std::string> bsdf_kind;  // per bsdfs entry, for SceneFeatures
-    PerspectiveCamera camera;
+    Camera camera;
     bool has_camera = false;
     IntegratorSettings integrator;
     SamplerSettings sampler;
@@ -472,7 +472,7 @@ struct Builder {
             film.crop_width = film.width;
             film.crop_height = film.height;
             film.filter = PixelFilter::gaussian(0.5f);  // Mitsuba's default film's filter
-            camera = PerspectiveCamera(Transform(), film, 45.f, "x", 0.01f);
+            camera = Camera(Transform(), film, 45.f, "x", 0.01f);
         }
     }
 
@@ -626,19 +626,46 @@ struct Builder {
     }
 
     void build_sensor(const ObjectDesc& obj) {
-        if (obj.type != "perspective")
-            throw InputError(obj.loc,
-                             "unsupported sensor '" + obj.type + "' (supported: perspective)");
+        const bool orthographic = obj.type == "orthographic";
+        const bool thin_lens = obj.type == "thinlens";
+        if (obj.type != "perspective" && !orthographic && !thin_lens)
+            throw InputError(obj.loc, "unsupported sensor '" + obj.type +
+                                          "' (supported: perspective, thinlens, orthographic)");
         Properties props(obj, diagnostics);
-        const auto [fov, fov_axis] = read_fov(props);
+        std::pair<float, std::string> fov{90.f, "x"};
+        if (!orthographic) fov = read_fov(props);
         const auto near_clip = static_cast<float>(props.get_float("near_clip", 0.01));
-        props.ignore("far_clip");
-        // Mitsuba 3's projective cameras all read focus_distance; only the thin lens uses it,
-        // so a pinhole camera given one (Mitsuba's own cbox.xml) renders as without it.
-        props.ignore("focus_distance");
+        // Rays are not cut at far_clip (Mitsuba's default 1e4 is beyond most scenes).
+        const double far_clip = props.get_float("far_clip", 1e4);
+        // Mitsuba 3's projective cameras all read focus_distance (default far_clip); only the
+        // thin lens uses it, so a pinhole camera given one (Mitsuba's own cbox.xml) renders as
+        // without it.
+        float focus_distance = 0.f, aperture_radius = 0.f;
+        if (thin_lens) {
+            focus_distance = static_cast<float>(props.get_float("focus_distance", far_clip));
+            aperture_radius = static_cast<float>(props.get_float("aperture_radius", 0.0));
+            if (!props.has("aperture_radius"))
+                throw InputError(obj.loc, "thinlens needs aperture_radius");
+            if (!(focus_distance > 0.f && focus_distance <= kMaxWorldCoordinate))
+                throw InputError(props.loc_of("focus_distance"),
+                                 "focus_distance must be positive and finite");
+            if (!(aperture_radius >= 0.f && aperture_radius <= kMaxWorldCoordinate))
+                throw InputError(props.loc_of("aperture_radius"),
+                                 "aperture_radius must be zero or positive and finite");
+        } else {
+            props.ignore("focus_distance");
+        }
         const Transform world_from_camera = props.get_transform("to_world");
         check_world_point(world_from_camera.apply_point(Vec3d(Vec3d::Zero())),
                           props.loc_of("to_world"), "the camera");
+        if (thin_lens) {
+            // Mitsuba 3 refuses a scaling to_world for the thin lens: its lens radius and
+            // focus distance are world lengths.
+            const Eigen::Matrix3d linear = world_from_camera.matrix.topLeftCorner<3, 3>();
+            if (!(linear.transpose() * linear).isIdentity(1e-3))
+                throw InputError(props.loc_of("to_world"),
+                                 "a thinlens sensor's to_world must not scale (as in Mitsuba 3)");
+        }
         if (!(near_clip > 0.f && near_clip <= kMaxWorldCoordinate))
             throw InputError(props.loc_of("near_clip"),
                              "near_clip must be positive and finite (at most 1e16)");
@@ -661,7 +688,13 @@ struct Builder {
             }
         }
         (void)has_film;
-        camera = PerspectiveCamera(world_from_camera, film, fov, fov_axis, near_clip);
+        if (orthographic)
+            camera = Camera::orthographic(world_from_camera, film, near_clip);
+        else if (thin_lens)
+            camera = Camera::thin_lens(world_from_camera, film, fov.first, fov.second, near_clip,
+                                       aperture_radius, focus_distance);
+        else
+            camera = Camera(world_from_camera, film, fov.first, fov.second, near_clip);
         has_camera = true;
     }
 
@@ -1233,7 +1266,7 @@ struct Builder {
             film.width = film.crop_width = width;
             film.height = film.crop_height = height;
             film.filter = PixelFilter();  // box: the film only maps directions here
-            projector.camera = PerspectiveCamera(to_world, film, fov, fov_axis, 1e-4f);
+            projector.camera = Camera(to_world, film, fov, fov_axis, 1e-4f);
             projector.irradiance = std::move(irradiance);
             projector.axis = to_world.apply_vector(Vec3d(0.0, 0.0, 1.0)).normalized().cast<float>();
             emitters.emplace_back(std::move(projector));

@@ -93,6 +93,26 @@ TEST_F(Cli, RenderWritesTheExrThePngAndTheStatistics) {
     EXPECT_GT(sum, 0.0);
 }
 
+TEST_F(Cli, TheStatisticsSayWhichCameraRan) {
+    // The box through a thin lens: config.camera names it (the pinhole's is "perspective").
+    std::string xml = test::cornell_box_xml(8);
+    const std::string pinhole = R"(<sensor type="perspective">)";
+    xml.replace(xml.find(pinhole), pinhole.size(),
+                R"(<sensor type="thinlens"><float name="aperture_radius" value="0.1"/>)");
+    write("lens.xml", "<scene version=\"3.0.0\">\n" + xml + "\n</scene>\n");
+    for (const auto& [scene, name] : {std::pair<std::string, std::string>{"lens.xml", "thinlens"},
+                                      {"box.xml", "perspective"}}) {
+        const Outcome run =
+            run_gdmlt(dir_, "render " + scene + " --spp 2 -t 2 -q -o out.exr --stats s.json");
+        ASSERT_EQ(run.exit_code, 0) << run.output;
+        std::ifstream stats(dir_ / "s.json");
+        std::stringstream text;
+        text << stats.rdbuf();
+        EXPECT_NE(text.str().find("\"camera\": \"" + name + "\""), std::string::npos)
+            << scene << ": " << text.str();
+    }
+}
+
 TEST_F(Cli, AnAovIntegratorWritesItsLayersWithMitsubasChannelNames) {
     // Mitsuba 3's integrator_aov.xml spelling: the beauty of the nested path tracer and the
     // layers nn.X/Y/Z, depth.y.T beside it.

@@ -211,6 +211,46 @@ TEST(SceneBuild, APinholeCameraTakesAFocusDistanceWithoutEffect) {
     }
 }
 
+TEST(SceneBuild, ThinLensAndOrthographicSensorsAsMitsubaReadsThem) {
+    const std::string pose =
+        R"(<transform name="to_world"><lookat origin="0, 1, 5" target="0, 0, 0" up="0, 1, 0"/></transform>)";
+    // A thin lens: its aperture and focus read; without aperture_radius, or with a scaling
+    // to_world (Mitsuba 3 refuses both), an error at the sensor.
+    const Scene lens = test::scene_from_xml(
+        R"(<sensor type="thinlens"><float name="aperture_radius" value="0.2"/>
+        <float name="focus_distance" value="4"/>)" +
+        pose + "</sensor>" + kLight);
+    EXPECT_EQ(lens.camera().projection(), Projection::ThinLens);
+    EXPECT_TRUE(lens.camera().needs_lens_sample());
+    // The lens point for u = (1, 0.5) is the disk's rim on camera +x, 0.2 from the centre.
+    EXPECT_NEAR((lens.camera().lens_position(Vec2f(1.f, 0.5f)) - Vec3f(0.f, 1.f, 5.f)).norm(), 0.2f,
+                1e-5f);
+    std::string message = build_error("\n<sensor type=\"thinlens\">" + pose + "</sensor>" + kLight);
+    EXPECT_NE(message.find("test.xml:3"), std::string::npos) << message;
+    EXPECT_NE(message.find("aperture_radius"), std::string::npos) << message;
+    message = build_error(
+        R"(<sensor type="thinlens"><float name="aperture_radius" value="0.2"/>
+        <transform name="to_world"><scale value="2"/></transform></sensor>)" +
+        kLight);
+    EXPECT_NE(message.find("must not scale"), std::string::npos) << message;
+    // An orthographic camera: parallel rays along the view direction, scaled by to_world.
+    const Scene ortho = test::scene_from_xml(
+        R"(<sensor type="orthographic"><transform name="to_world"><scale x="2" y="2"/>
+        <lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform></sensor>)" +
+        kLight);
+    EXPECT_EQ(ortho.camera().projection(), Projection::Orthographic);
+    EXPECT_FALSE(ortho.camera().needs_lens_sample());
+    const Ray corner = ortho.camera().generate_ray(Vec2f(0.f, 0.f));
+    // Mitsuba's default film is 768 x 576: the top-left corner sees camera (1, 0.75) times 2;
+    // camera +x is world -x here (looking down -z), so world (-2, 1.5).
+    EXPECT_NEAR(corner.origin.x(), -2.f, 1e-5f);
+    EXPECT_NEAR(corner.origin.y(), 1.5f, 1e-5f);
+    EXPECT_NEAR((corner.direction - Vec3f(0.f, 0.f, -1.f)).norm(), 0.f, 1e-6f);
+    message = build_error("<sensor type=\"fisheye\"/>" + kLight);
+    EXPECT_NE(message.find("supported: perspective, thinlens, orthographic"), std::string::npos)
+        << message;
+}
+
 TEST(SceneBuild, AMomentIntegratorRendersItsFirstNestedIntegrator) {
     // Mitsuba 3's test scenes wrap their integrator in `moment`, whose image is the first
     // nested integrator's.

@@ -133,7 +133,8 @@ MeanEstimate path_traced_pixel(const Scene& scene, const PathSamplerSettings& se
             derive_stream(seed, static_cast<std::uint64_t>(x), static_cast<std::uint64_t>(s)));
         const Vec2f jitter = stream.next_2d();
         const Ray ray = scene.camera().generate_ray(
-            Vec2f(static_cast<float>(x) + jitter.x(), static_cast<float>(y) + jitter.y()));
+            Vec2f(static_cast<float>(x) + jitter.x(), static_cast<float>(y) + jitter.y()),
+            draw_lens_sample(scene.camera(), stream));
         acc.add(luminance(sample_path_radiance(scene, ray, stream, settings, counters)));
     }
     return acc.estimate();
