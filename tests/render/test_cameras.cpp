@@ -227,7 +227,7 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"gdpt", Integrator::Gdpt, 0.0012, 0.001},
                       Case{"gdmlt", Integrator::Gdmlt, 0.01, 0.01},
                       Case{"gdmlt_bidirectional", Integrator::GdmltBidirectional, 0.008, 0.009}),
-    [](const ::testing::TestParamInfo<Case>& info) { return std::string(info.param.name); });
+    [](const ::testing::TestParamInfo<Case>& param) { return std::string(param.param.name); });
 
 }  // namespace
 }  // namespace gdmlt
