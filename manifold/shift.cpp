@@ -130,8 +130,8 @@ bool evaluate_continuation(const Scene& scene, PathVertex& y, const Vec3f& from,
     const Vec3f wo = y.si.shading.to_local(wo_world);
     const Vec3f wi = y.si.shading.to_local(to_world);
     y.wi_world = to_world;
-    y.f = bsdf.eval(y.si.uv, wo, wi);
-    y.pdf = bsdf.pdf(y.si.uv, wo, wi);
+    y.f = bsdf.eval(y.si.texture_point(), wo, wi);
+    y.pdf = bsdf.pdf(y.si.texture_point(), wo, wi);
     y.delta = false;
     y.continued = true;
     const float side = y.si.n_geometric.dot(to_world) * y.si.n_geometric.dot(wo_world);
@@ -274,7 +274,7 @@ ShiftStatus manifold_shift(const Scene& scene, const Path& base, std::size_t k, 
         v.wi_world = (position(j + 1) - p).normalized().cast<float>();
         // The walked chain fixes reflection versus refraction; the lobe's weight and
         // probability are the offset's own (its Fresnel term at its own angle).
-        const BsdfSample bs = bsdf.sample(v.si.uv, v.si.shading.to_local(wo_world),
+        const BsdfSample bs = bsdf.sample(v.si.texture_point(), v.si.shading.to_local(wo_world),
                                           cv.reflection ? 0.f : 1.f, xj.u_direction);
         if (!bs.valid() || !bs.delta || bs.transmission == cv.reflection)
             return cv.reflection ? ShiftStatus::LobeChanged
@@ -366,8 +366,8 @@ ShiftStatus copy_half_vector(const Scene& scene, const Path& base, std::size_t k
     y.u_lobe = x.u_lobe;
     y.u_direction = x.u_direction;
     y.wi_world = y.si.shading.to_world(wi_y);
-    y.f = bsdf.eval(y.si.uv, wo_y, wi_y);
-    y.pdf = bsdf.pdf(y.si.uv, wo_y, wi_y);
+    y.f = bsdf.eval(y.si.texture_point(), wo_y, wi_y);
+    y.pdf = bsdf.pdf(y.si.texture_point(), wo_y, wi_y);
     const float side = y.si.n_geometric.dot(y.wi_world) * y.si.n_geometric.dot(wo_y_world);
     if ((x.transmission ? side > 0.f : side < 0.f) || !(y.pdf > 0.f) || !is_finite(y.f))
         return ShiftStatus::LobeChanged;
@@ -527,8 +527,8 @@ void shift_path(const Scene& scene, const Path& base, const Vec2f& film_offset, 
         const float u_lobe = base.replayable ? x.u_lobe : (x.transmission ? 1.f : 0.f);
         const Bsdf& bsdf = scene.bsdf_of(yk.si);
         const Vec3f wo_world = (from - yk.si.p).normalized();
-        const BsdfSample bs =
-            bsdf.sample(yk.si.uv, yk.si.shading.to_local(wo_world), u_lobe, x.u_direction);
+        const BsdfSample bs = bsdf.sample(yk.si.texture_point(), yk.si.shading.to_local(wo_world),
+                                          u_lobe, x.u_direction);
         if (!bs.valid()) {
             return finish(
                 x.transmission ? ShiftStatus::TotalInternalReflection : ShiftStatus::LobeChanged,
@@ -611,10 +611,11 @@ void path_contributions(const Scene& scene, const Path& path,
             Contribution c;
             c.kind = Contribution::Kind::NextEvent;
             c.vertex = static_cast<int>(k);
-            c.f = v.light_visible ? Rgb(f_prefix * bsdf.eval(v.si.uv, wo, wi) * v.light.radiance)
-                                  : Rgb(Rgb::Zero());
+            c.f = v.light_visible
+                      ? Rgb(f_prefix * bsdf.eval(v.si.texture_point(), wo, wi) * v.light.radiance)
+                      : Rgb(Rgb::Zero());
             c.pdf = pdf_prefix * v.light.pdf_solid_angle;
-            c.pdf_other = v.light.delta ? 0.0 : pdf_prefix * bsdf.pdf(v.si.uv, wo, wi);
+            c.pdf_other = v.light.delta ? 0.0 : pdf_prefix * bsdf.pdf(v.si.texture_point(), wo, wi);
             c.log_jacobian = log_j_prefix + (k < log_jacobian.size() ? v.log_light_jacobian : 0.0);
             out.push_back(c);
         }

@@ -16,11 +16,11 @@ const Bsdf* bsdf_of_shape(const Scene& scene, std::int32_t shape) {
 
 /// Fills the optical description of a vertex whose geometry is set; the neighbours decide
 /// reflection versus refraction.
-WalkFailure classify_vertex(const Scene& scene, ChainVertex& v, const Vec2f& uv, const Vec3d& w_i,
-                            const Vec3d& w_o) {
+WalkFailure classify_vertex(const Scene& scene, ChainVertex& v, const TexturePoint& at,
+                            const Vec3d& w_i, const Vec3d& w_o) {
     const Bsdf* bsdf = bsdf_of_shape(scene, v.geometry.shape);
     if (!bsdf) return WalkFailure::DegenerateChain;
-    v.roughness = bsdf->roughness_class_at(uv);
+    v.roughness = bsdf->roughness_class_at(at);
     if (v.roughness == RoughnessClass::Diffuse) return WalkFailure::DegenerateChain;
     const double side_i = w_i.dot(v.geometry.n_geometric), side_o = w_o.dot(v.geometry.n_geometric);
     if (side_i * w_i.dot(v.geometry.n_shading) <= 0.0 ||
@@ -116,8 +116,8 @@ ChainOutcome build_chain(const Scene& scene, const ChainEndpoint& start,
             out.failure = WalkFailure::DegenerateChain;
             return out;
         }
-        out.failure = classify_vertex(scene, v, vertices[i].uv, to_previous.normalized(),
-                                      to_next.normalized());
+        out.failure = classify_vertex(scene, v, vertices[i].texture_point(),
+                                      to_previous.normalized(), to_next.normalized());
         if (!out.ok()) return out;
         if (v.roughness == RoughnessClass::Glossy) {
             const std::optional<Vec2d> slope = half_vector_slope(out.chain.position(i), v.geometry,
@@ -146,8 +146,9 @@ ChainOutcome trace_new_chain(const Scene& scene, const ChainEndpoint& start, con
         }
         const Bsdf* bsdf = bsdf_of_shape(scene, v.geometry.shape);
         const Shape& shape = scene.shapes()[static_cast<std::size_t>(v.geometry.shape)];
-        v.roughness = bsdf ? bsdf->roughness_class_at(to_interaction(shape, v.geometry).uv)
-                           : RoughnessClass::Diffuse;
+        v.roughness =
+            bsdf ? bsdf->roughness_class_at(to_interaction(shape, v.geometry).texture_point())
+                 : RoughnessClass::Diffuse;
         if (v.roughness == RoughnessClass::Diffuse) {
             out.failure = WalkFailure::DegenerateChain;
             return out;

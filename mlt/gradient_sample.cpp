@@ -75,14 +75,14 @@ bool light_path_in_camera_order(const Scene& scene, const std::vector<BdptVertex
         const Vec3f wo = v.si.shading.to_local(wo_world), wi = v.si.shading.to_local(v.wi_world);
         if (v.delta) {
             if (v.roughness != RoughnessClass::Delta) return false;
-            const BsdfSample bs =
-                bsdf.sample(v.si.uv, wo, v.transmission ? 1.f : 0.f, Vec2f(0.5f, 0.5f));
+            const BsdfSample bs = bsdf.sample(v.si.texture_point(), wo, v.transmission ? 1.f : 0.f,
+                                              Vec2f(0.5f, 0.5f));
             if (!bs.valid() || !bs.delta || bs.transmission != v.transmission) return false;
             v.pdf = bs.pdf_solid_angle;
             v.f = bs.weight * bs.pdf_solid_angle;
         } else {
-            v.f = bsdf.eval(v.si.uv, wo, wi);
-            v.pdf = bsdf.pdf(v.si.uv, wo, wi);
+            v.f = bsdf.eval(v.si.texture_point(), wo, wi);
+            v.pdf = bsdf.pdf(v.si.texture_point(), wo, wi);
         }
         if (!(v.pdf > 0.f) || is_black(v.f)) return false;
         path.vertices.push_back(v);

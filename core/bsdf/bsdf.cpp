@@ -27,16 +27,16 @@ namespace detail {
 
 // Smooth models and the diffuse base. Delta lobes have no density: eval and pdf are zero.
 
-Rgb eval_model(const DiffuseBsdf& m, const Vec2f& uv, const Vec3f& wo, const Vec3f& wi,
+Rgb eval_model(const DiffuseBsdf& m, const TexturePoint& at, const Vec3f& wo, const Vec3f& wi,
                TransportMode) {
     if (cos_theta(wo) <= 0.f || cos_theta(wi) <= 0.f) return Rgb::Zero();
-    return m.reflectance.eval(uv) * (kInvPi * cos_theta(wi));
+    return m.reflectance.eval(at) * (kInvPi * cos_theta(wi));
 }
-float pdf_model(const DiffuseBsdf&, const Vec2f&, const Vec3f& wo, const Vec3f& wi) {
+float pdf_model(const DiffuseBsdf&, const TexturePoint&, const Vec3f& wo, const Vec3f& wi) {
     if (cos_theta(wo) <= 0.f || cos_theta(wi) <= 0.f) return 0.f;
     return warp::square_to_cosine_hemisphere_pdf_solid_angle(wi);
 }
-BsdfSample sample_model(const DiffuseBsdf& m, const Vec2f& uv, const Vec3f& wo, float,
+BsdfSample sample_model(const DiffuseBsdf& m, const TexturePoint& at, const Vec3f& wo, float,
                         const Vec2f& u, TransportMode) {
     BsdfSample s;
     if (cos_theta(wo) <= 0.f) return s;
@@ -46,7 +46,7 @@ BsdfSample sample_model(const DiffuseBsdf& m, const Vec2f& uv, const Vec3f& wo, 
         s = BsdfSample{};
         return s;
     }
-    s.weight = m.reflectance.eval(uv);  // (R/pi * cos) / (cos/pi)
+    s.weight = m.reflectance.eval(at);  // (R/pi * cos) / (cos/pi)
     s.sampled_class = RoughnessClass::Diffuse;
     return s;
 }
@@ -58,12 +58,12 @@ BsdfLobes model_lobes(const DiffuseBsdf&) {
 RoughnessClass model_class(const DiffuseBsdf&) {
     return RoughnessClass::Diffuse;
 }
-RoughnessClass model_class_at(const DiffuseBsdf&, const Vec2f&) {
+RoughnessClass model_class_at(const DiffuseBsdf&, const TexturePoint&) {
     return RoughnessClass::Diffuse;
 }
 
-BsdfSample sample_model(const DielectricBsdf& m, const Vec2f& uv, const Vec3f& wo, float u_lobe,
-                        const Vec2f&, TransportMode mode) {
+BsdfSample sample_model(const DielectricBsdf& m, const TexturePoint& at, const Vec3f& wo,
+                        float u_lobe, const Vec2f&, TransportMode mode) {
     BsdfSample s;
     const FresnelDielectric f = fresnel_dielectric(cos_theta(wo), m.eta);
     s.delta = true;
@@ -73,7 +73,7 @@ BsdfSample sample_model(const DielectricBsdf& m, const Vec2f& uv, const Vec3f& w
     if (u_lobe < f.reflectance) {
         s.wi = reflect_local(wo);
         s.pdf_solid_angle = f.reflectance;
-        s.weight = m.specular_reflectance.eval(uv);
+        s.weight = m.specular_reflectance.eval(at);
         s.eta = 1.f;
     } else {
         s.wi = refract_local(wo, f.cos_theta_t, f.eta_ti);
@@ -81,7 +81,7 @@ BsdfSample sample_model(const DielectricBsdf& m, const Vec2f& uv, const Vec3f& w
         s.transmission = true;
         s.eta = f.eta_it;
         const float scale = mode == TransportMode::Radiance ? f.eta_ti * f.eta_ti : 1.f;
-        s.weight = m.specular_transmittance.eval(uv) * scale;
+        s.weight = m.specular_transmittance.eval(at) * scale;
     }
     if (!(s.pdf_solid_angle > 0.f)) {
         s = BsdfSample{};
@@ -96,8 +96,8 @@ BsdfLobes model_lobes(const DielectricBsdf&) {
     return l;
 }
 
-BsdfSample sample_model(const ThinDielectricBsdf& m, const Vec2f& uv, const Vec3f& wo, float u_lobe,
-                        const Vec2f&, TransportMode) {
+BsdfSample sample_model(const ThinDielectricBsdf& m, const TexturePoint& at, const Vec3f& wo,
+                        float u_lobe, const Vec2f&, TransportMode) {
     BsdfSample s;
     s.delta = true;
     s.sampled_class = RoughnessClass::Delta;
@@ -107,12 +107,12 @@ BsdfSample sample_model(const ThinDielectricBsdf& m, const Vec2f& uv, const Vec3
     if (u_lobe < r) {
         s.wi = reflect_local(wo);
         s.pdf_solid_angle = r;
-        s.weight = m.specular_reflectance.eval(uv);
+        s.weight = m.specular_reflectance.eval(at);
     } else {
         s.wi = -wo;
         s.pdf_solid_angle = 1.f - r;
         s.transmission = true;
-        s.weight = m.specular_transmittance.eval(uv);
+        s.weight = m.specular_transmittance.eval(at);
     }
     if (!(s.pdf_solid_angle > 0.f)) {
         s = BsdfSample{};
@@ -127,7 +127,7 @@ BsdfLobes model_lobes(const ThinDielectricBsdf&) {
     return l;
 }
 
-BsdfSample sample_model(const ConductorBsdf& m, const Vec2f& uv, const Vec3f& wo, float,
+BsdfSample sample_model(const ConductorBsdf& m, const TexturePoint& at, const Vec3f& wo, float,
                         const Vec2f&, TransportMode) {
     BsdfSample s;
     if (cos_theta(wo) <= 0.f) return s;
@@ -135,7 +135,7 @@ BsdfSample sample_model(const ConductorBsdf& m, const Vec2f& uv, const Vec3f& wo
     s.sampled_class = RoughnessClass::Delta;
     s.wi = reflect_local(wo);
     s.pdf_solid_angle = 1.f;
-    s.weight = m.specular_reflectance.eval(uv);
+    s.weight = m.specular_reflectance.eval(at);
     if (!m.perfect_mirror) s.weight *= fresnel_conductor(cos_theta(wo), m.eta, m.k);
     return s;
 }
@@ -147,18 +147,18 @@ BsdfLobes model_lobes(const ConductorBsdf&) {
 }
 
 // The three purely delta models share eval, pdf and class.
-#define GDMLT_DELTA_MODEL(M)                                                            \
-    Rgb eval_model(const M&, const Vec2f&, const Vec3f&, const Vec3f&, TransportMode) { \
-        return Rgb::Zero();                                                             \
-    }                                                                                   \
-    float pdf_model(const M&, const Vec2f&, const Vec3f&, const Vec3f&) {               \
-        return 0.f;                                                                     \
-    }                                                                                   \
-    RoughnessClass model_class(const M&) {                                              \
-        return RoughnessClass::Delta;                                                   \
-    }                                                                                   \
-    RoughnessClass model_class_at(const M&, const Vec2f&) {                             \
-        return RoughnessClass::Delta;                                                   \
+#define GDMLT_DELTA_MODEL(M)                                                                   \
+    Rgb eval_model(const M&, const TexturePoint&, const Vec3f&, const Vec3f&, TransportMode) { \
+        return Rgb::Zero();                                                                    \
+    }                                                                                          \
+    float pdf_model(const M&, const TexturePoint&, const Vec3f&, const Vec3f&) {               \
+        return 0.f;                                                                            \
+    }                                                                                          \
+    RoughnessClass model_class(const M&) {                                                     \
+        return RoughnessClass::Delta;                                                          \
+    }                                                                                          \
+    RoughnessClass model_class_at(const M&, const TexturePoint&) {                             \
+        return RoughnessClass::Delta;                                                          \
     }
 GDMLT_DELTA_MODEL(DielectricBsdf)
 GDMLT_DELTA_MODEL(ThinDielectricBsdf)
@@ -208,14 +208,14 @@ struct Bsdf::Composite {
     bool flip_invalid_normals = true;
     bool use_shadowing_function = true;
 
-    float weight_at(const Vec2f& uv) const { return std::clamp(weight.eval(uv), 0.f, 1.f); }
+    float weight_at(const TexturePoint& at) const { return std::clamp(weight.eval(at), 0.f, 1.f); }
     bool mask() const { return kind == Kind::Mask; }
     bool normal_map() const { return kind == Kind::NormalMap; }
 
     /// The perturbed frame in local shading coordinates (Mitsuba 3.9's normalmap: tangent
     /// (1, 0, 0) projected), given the direction towards the camera side.
-    Frame perturbed_frame(const Vec2f& uv, const Vec3f& w_camera) const {
-        Vec3f n = (2.f * normals.eval(uv) - 1.f).matrix();
+    Frame perturbed_frame(const TexturePoint& at, const Vec3f& w_camera) const {
+        Vec3f n = (2.f * normals.eval(at) - 1.f).matrix();
         // Flip about the shading normal when the perturbed normal faces away from the side
         // the camera-side direction is on.
         if (flip_invalid_normals && cos_theta(w_camera) * w_camera.dot(n) <= 0.f)
@@ -287,11 +287,11 @@ float normal_map_adjoint_factor(const Vec3f& w_light, const Vec3f& w_light_pertu
 // camera-side direction, which decides the flip (wo in Radiance mode, wi in Importance mode):
 // where the two frames differ (a flip seen from one side only, at grazing angles on steep
 // normals) an Importance sample is weighed by eval / pdf, and a delta one is dropped.
-BsdfSample Bsdf::sample_normal_mapped(const Vec2f& uv, const Vec3f& wo, float u_lobe,
+BsdfSample Bsdf::sample_normal_mapped(const TexturePoint& at, const Vec3f& wo, float u_lobe,
                                       const Vec2f& u, TransportMode mode) const {
     const Composite& c = *composite_;
-    const Frame frame = c.perturbed_frame(uv, wo);
-    BsdfSample s = c.first.sample(uv, frame.to_local(wo), u_lobe, u, mode);
+    const Frame frame = c.perturbed_frame(at, wo);
+    BsdfSample s = c.first.sample(at, frame.to_local(wo), u_lobe, u, mode);
     if (!s.valid()) return s;
     const Vec3f wi_perturbed = s.wi;
     s.wi = frame.to_world(wi_perturbed);
@@ -304,7 +304,7 @@ BsdfSample Bsdf::sample_normal_mapped(const Vec2f& uv, const Vec3f& wo, float u_
         return s;
     }
     if (s.delta) {
-        const Frame camera_frame = c.perturbed_frame(uv, s.wi);
+        const Frame camera_frame = c.perturbed_frame(at, s.wi);
         const Vec3f wo_perturbed = frame.to_local(wo);
         if (camera_frame.n != frame.n || cos_theta(wo) * cos_theta(wo_perturbed) <= 0.f) {
             s = BsdfSample{};
@@ -314,12 +314,12 @@ BsdfSample Bsdf::sample_normal_mapped(const Vec2f& uv, const Vec3f& wo, float u_
                     c.shadowing(frame.n, wo);
         return s;
     }
-    s.pdf_solid_angle = pdf(uv, wo, s.wi);
+    s.pdf_solid_angle = pdf(at, wo, s.wi);
     if (!(s.pdf_solid_angle > 0.f)) {
         s = BsdfSample{};
         return s;
     }
-    s.weight = eval(uv, wo, s.wi, mode) / s.pdf_solid_angle;
+    s.weight = eval(at, wo, s.wi, mode) / s.pdf_solid_angle;
     return s;
 }
 
@@ -334,11 +334,11 @@ Bsdf Bsdf::blend(FloatTexture weight, Bsdf first, Bsdf second) {
     return b;
 }
 
-BsdfSample Bsdf::sample_composite(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
-                                  TransportMode mode) const {
+BsdfSample Bsdf::sample_composite(const TexturePoint& at, const Vec3f& wo, float u_lobe,
+                                  const Vec2f& u, TransportMode mode) const {
     const Composite& c = *composite_;
-    if (c.normal_map()) return sample_normal_mapped(uv, wo, u_lobe, u, mode);
-    const float w = c.weight_at(uv);
+    if (c.normal_map()) return sample_normal_mapped(at, wo, u_lobe, u, mode);
+    const float w = c.weight_at(at);
     BsdfSample s;
     if (c.mask()) {
         if (u_lobe >= w) {
@@ -354,7 +354,7 @@ BsdfSample Bsdf::sample_composite(const Vec2f& uv, const Vec3f& wo, float u_lobe
         }
         // The random number is reused for the nested BSDF's own lobe choice (Mitsuba 3 does the
         // same), rescaled to [0, 1).
-        s = c.first.sample(uv, wo, u_lobe / w, u, mode);
+        s = c.first.sample(at, wo, u_lobe / w, u, mode);
         // f and pdf both carry the opacity: the weight f / pdf is the nested one.
         s.pdf_solid_angle *= w;
         if (!s.valid()) s = BsdfSample{};
@@ -364,15 +364,15 @@ BsdfSample Bsdf::sample_composite(const Vec2f& uv, const Vec3f& wo, float u_lobe
     const bool second = u_lobe < w;
     const float probability = second ? w : 1.f - w;
     const float u_rescaled = second ? u_lobe / w : (u_lobe - w) / (1.f - w);
-    s = (second ? c.second : c.first).sample(uv, wo, std::min(u_rescaled, 0x1.fffffep-1f), u, mode);
+    s = (second ? c.second : c.first).sample(at, wo, std::min(u_rescaled, 0x1.fffffep-1f), u, mode);
     if (!s.valid()) return s;
     if (s.delta) {
         s.pdf_solid_angle *= probability;
         return s;
     }
     // The density of the direction is the mixture's whichever component drew it.
-    s.pdf_solid_angle = pdf(uv, wo, s.wi);
-    const Rgb f = eval(uv, wo, s.wi, mode);
+    s.pdf_solid_angle = pdf(at, wo, s.wi);
+    const Rgb f = eval(at, wo, s.wi, mode);
     if (!(s.pdf_solid_angle > 0.f)) {
         s = BsdfSample{};
         return s;
@@ -388,26 +388,26 @@ const BsdfModel& Bsdf::model_for(const Vec3f& wo, Vec3f* wo_query, bool* flipped
     return front_;
 }
 
-Rgb Bsdf::eval(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi, TransportMode mode) const {
+Rgb Bsdf::eval(const TexturePoint& at, const Vec3f& wo, const Vec3f& wi, TransportMode mode) const {
     if (composite_) {
         const Composite& c = *composite_;
         if (c.normal_map()) {
             const bool radiance = mode == TransportMode::Radiance;
             const Vec3f& w_camera = radiance ? wo : wi;
             const Vec3f& w_light = radiance ? wi : wo;
-            const Frame frame = c.perturbed_frame(uv, w_camera);
+            const Frame frame = c.perturbed_frame(at, w_camera);
             const Vec3f wo_p = frame.to_local(wo), wi_p = frame.to_local(wi);
             const Vec3f& w_light_p = radiance ? wi_p : wo_p;
             if (cos_theta(w_light) * cos_theta(w_light_p) <= 0.f) return Rgb::Zero();
-            Rgb f = c.first.eval(uv, wo_p, wi_p, mode) * c.shadowing(frame.n, w_light);
+            Rgb f = c.first.eval(at, wo_p, wi_p, mode) * c.shadowing(frame.n, w_light);
             if (!radiance) f *= normal_map_adjoint_factor(wo, wo_p, wi, wi_p);
             return f;
         }
-        const float w = c.weight_at(uv);
-        if (c.mask()) return w > 0.f ? Rgb(w * c.first.eval(uv, wo, wi, mode)) : Rgb::Zero();
+        const float w = c.weight_at(at);
+        if (c.mask()) return w > 0.f ? Rgb(w * c.first.eval(at, wo, wi, mode)) : Rgb::Zero();
         Rgb f = Rgb::Zero();
-        if (w < 1.f) f += (1.f - w) * c.first.eval(uv, wo, wi, mode);
-        if (w > 0.f) f += w * c.second.eval(uv, wo, wi, mode);
+        if (w < 1.f) f += (1.f - w) * c.first.eval(at, wo, wi, mode);
+        if (w > 0.f) f += w * c.second.eval(at, wo, wi, mode);
         return f;
     }
     Vec3f wo_q;
@@ -415,24 +415,24 @@ Rgb Bsdf::eval(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi, TransportMode 
     const BsdfModel& m = model_for(wo, &wo_q, &flipped);
     const Vec3f wi_q = flipped ? flip_z(wi) : wi;
     const Rgb f = std::visit(
-        [&](const auto& model) { return detail::eval_model(model, uv, wo_q, wi_q, mode); }, m);
+        [&](const auto& model) { return detail::eval_model(model, at, wo_q, wi_q, mode); }, m);
     return is_finite(f) ? f : Rgb::Zero();
 }
 
-float Bsdf::pdf(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi) const {
+float Bsdf::pdf(const TexturePoint& at, const Vec3f& wo, const Vec3f& wi) const {
     if (composite_) {
         const Composite& c = *composite_;
         if (c.normal_map()) {
-            const Frame frame = c.perturbed_frame(uv, wo);
+            const Frame frame = c.perturbed_frame(at, wo);
             const Vec3f wi_p = frame.to_local(wi);
             if (cos_theta(wi) * cos_theta(wi_p) <= 0.f) return 0.f;
-            return c.first.pdf(uv, frame.to_local(wo), wi_p);
+            return c.first.pdf(at, frame.to_local(wo), wi_p);
         }
-        const float w = c.weight_at(uv);
-        if (c.mask()) return w > 0.f ? w * c.first.pdf(uv, wo, wi) : 0.f;
+        const float w = c.weight_at(at);
+        if (c.mask()) return w > 0.f ? w * c.first.pdf(at, wo, wi) : 0.f;
         float p = 0.f;
-        if (w < 1.f) p += (1.f - w) * c.first.pdf(uv, wo, wi);
-        if (w > 0.f) p += w * c.second.pdf(uv, wo, wi);
+        if (w < 1.f) p += (1.f - w) * c.first.pdf(at, wo, wi);
+        if (w > 0.f) p += w * c.second.pdf(at, wo, wi);
         return p;
     }
     Vec3f wo_q;
@@ -440,18 +440,18 @@ float Bsdf::pdf(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi) const {
     const BsdfModel& m = model_for(wo, &wo_q, &flipped);
     const Vec3f wi_q = flipped ? flip_z(wi) : wi;
     const float p =
-        std::visit([&](const auto& model) { return detail::pdf_model(model, uv, wo_q, wi_q); }, m);
+        std::visit([&](const auto& model) { return detail::pdf_model(model, at, wo_q, wi_q); }, m);
     return std::isfinite(p) ? p : 0.f;
 }
 
-BsdfSample Bsdf::sample(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
+BsdfSample Bsdf::sample(const TexturePoint& at, const Vec3f& wo, float u_lobe, const Vec2f& u,
                         TransportMode mode) const {
-    if (composite_) return sample_composite(uv, wo, u_lobe, u, mode);
+    if (composite_) return sample_composite(at, wo, u_lobe, u, mode);
     Vec3f wo_q;
     bool flipped;
     const BsdfModel& m = model_for(wo, &wo_q, &flipped);
     BsdfSample s = std::visit(
-        [&](const auto& model) { return detail::sample_model(model, uv, wo_q, u_lobe, u, mode); },
+        [&](const auto& model) { return detail::sample_model(model, at, wo_q, u_lobe, u, mode); },
         m);
     if (flipped) s.wi = flip_z(s.wi);
     if (!s.valid() || !std::isfinite(s.pdf_solid_angle) || !is_finite(s.weight) ||
@@ -493,18 +493,18 @@ RoughnessClass Bsdf::roughness_class() const {
     if (back_) c = std::min(c, cls(*back_));  // enum order: most connectable first
     return c;
 }
-RoughnessClass Bsdf::roughness_class_at(const Vec2f& uv) const {
+RoughnessClass Bsdf::roughness_class_at(const TexturePoint& at) const {
     if (composite_) {
         const Composite& c = *composite_;
-        if (c.normal_map()) return c.first.roughness_class_at(uv);
-        const float w = c.weight_at(uv);
-        if (c.mask()) return w <= 0.f ? RoughnessClass::Delta : c.first.roughness_class_at(uv);
-        if (w <= 0.f) return c.first.roughness_class_at(uv);
-        if (w >= 1.f) return c.second.roughness_class_at(uv);
-        return std::min(c.first.roughness_class_at(uv), c.second.roughness_class_at(uv));
+        if (c.normal_map()) return c.first.roughness_class_at(at);
+        const float w = c.weight_at(at);
+        if (c.mask()) return w <= 0.f ? RoughnessClass::Delta : c.first.roughness_class_at(at);
+        if (w <= 0.f) return c.first.roughness_class_at(at);
+        if (w >= 1.f) return c.second.roughness_class_at(at);
+        return std::min(c.first.roughness_class_at(at), c.second.roughness_class_at(at));
     }
     const auto cls = [&](const BsdfModel& m) {
-        return std::visit([&](const auto& model) { return detail::model_class_at(model, uv); }, m);
+        return std::visit([&](const auto& model) { return detail::model_class_at(model, at); }, m);
     };
     RoughnessClass c = cls(front_);
     if (back_) c = std::min(c, cls(*back_));

@@ -98,16 +98,16 @@ struct MicrofacetRoughness {
     FloatTexture alpha_v{0.1f};
     bool sample_visible = true;
 
-    MicrofacetDistribution at(const Vec2f& uv) const {
-        return {type, alpha_u.eval(uv), alpha_v.eval(uv)};
+    MicrofacetDistribution at(const TexturePoint& at) const {
+        return {type, alpha_u.eval(at), alpha_v.eval(at)};
     }
     /// The class of the sharpest place and direction: a lobe narrow along one axis cannot be
     /// reconnected to, whatever its width along the other.
     RoughnessClass roughness_class() const {
         return classify_alpha(std::min(alpha_u.min_value(), alpha_v.min_value()));
     }
-    RoughnessClass roughness_class_at(const Vec2f& uv) const {
-        return classify_alpha(std::min(alpha_u.eval(uv), alpha_v.eval(uv)));
+    RoughnessClass roughness_class_at(const TexturePoint& at) const {
+        return classify_alpha(std::min(alpha_u.eval(at), alpha_v.eval(at)));
     }
 };
 
@@ -187,14 +187,14 @@ using BsdfModel =
 /// from behind.
 ///
 /// A Bsdf can also be a stochastic mixture of other Bsdfs (is_composite()):
-///  - Mitsuba's `mask`: with probability 1 - opacity(uv) the ray passes straight through (a
+///  - Mitsuba's `mask`: with probability 1 - opacity(at) the ray passes straight through (a
 ///    null lobe: delta transmission, wi = -wo, eta 1, weight 1), otherwise the nested BSDF
 ///    scatters; f = opacity f_nested. `null` is a mask of opacity 0.
-///  - Mitsuba's `blendbsdf`: f = (1 - w(uv)) f_first + w(uv) f_second, sampled by choosing a
+///  - Mitsuba's `blendbsdf`: f = (1 - w(at)) f_first + w(at) f_second, sampled by choosing a
 ///    component with those probabilities; a non-delta sample is weighed by the mixture's
 ///    f / pdf (one-sample MIS over the components, Veach 1997 sec. 9.2.4), a delta one by its
 ///    component's weight, its pdf being the lobe probability times the selection probability.
-///  - Mitsuba 3's `normalmap`: the nested BSDF in a frame whose normal is 2 rgb(uv) - 1 in the
+///  - Mitsuba 3's `normalmap`: the nested BSDF in a frame whose normal is 2 rgb(at) - 1 in the
 ///    local shading frame, flipped about the normal towards the camera side when it faces away
 ///    from it (`flip_invalid_normals`, Schuessler et al. 2017), attenuated by the microfacet
 ///    terminator term of Conty Estevez et al. 2019 (`use_shadowing_function`), both on by
@@ -214,11 +214,11 @@ class Bsdf {
                            bool use_shadowing_function = true);
     bool is_composite() const { return composite_ != nullptr; }
 
-    Rgb eval(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi,
+    Rgb eval(const TexturePoint& at, const Vec3f& wo, const Vec3f& wi,
              TransportMode mode = TransportMode::Radiance) const;
-    float pdf(const Vec2f& uv, const Vec3f& wo, const Vec3f& wi) const;
+    float pdf(const TexturePoint& at, const Vec3f& wo, const Vec3f& wi) const;
     /// `u_lobe` chooses among lobes, `u` the direction.
-    BsdfSample sample(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
+    BsdfSample sample(const TexturePoint& at, const Vec3f& wo, float u_lobe, const Vec2f& u,
                       TransportMode mode = TransportMode::Radiance) const;
 
     /// True when every lobe is a Dirac delta (no point in light sampling or MIS).
@@ -228,9 +228,9 @@ class Bsdf {
     /// The roughness class of the surface, the most connectable lobe first
     /// (diffuse > glossy > delta) as shifts need it; see roughness_class.h. With textured
     /// roughness this is the class of the sharpest place on the surface (a summary for
-    /// SceneFeatures); per vertex use roughness_class_at(uv).
+    /// SceneFeatures); per vertex use roughness_class_at(at).
     RoughnessClass roughness_class() const;
-    RoughnessClass roughness_class_at(const Vec2f& uv) const;
+    RoughnessClass roughness_class_at(const TexturePoint& at) const;
     /// Every kind of lobe that occurs on either side.
     BsdfLobes lobes() const;
     const BsdfModel& front() const { return front_; }
@@ -241,10 +241,10 @@ class Bsdf {
   private:
     struct Composite;
     const BsdfModel& model_for(const Vec3f& wo, Vec3f* wo_flip, bool* flipped) const;
-    BsdfSample sample_composite(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
-                                TransportMode mode) const;
-    BsdfSample sample_normal_mapped(const Vec2f& uv, const Vec3f& wo, float u_lobe, const Vec2f& u,
-                                    TransportMode mode) const;
+    BsdfSample sample_composite(const TexturePoint& at, const Vec3f& wo, float u_lobe,
+                                const Vec2f& u, TransportMode mode) const;
+    BsdfSample sample_normal_mapped(const TexturePoint& at, const Vec3f& wo, float u_lobe,
+                                    const Vec2f& u, TransportMode mode) const;
 
     BsdfModel front_;
     std::optional<BsdfModel> back_;

@@ -13,14 +13,14 @@ inline Vec3f reflect_about(const Vec3f& w, const Vec3f& m) {
     return 2.f * w.dot(m) * m - w;
 }
 
-#define GDMLT_DECLARE_BSDF_MODEL(M)                                                     \
-    Rgb eval_model(const M& m, const Vec2f& uv, const Vec3f& wo, const Vec3f& wi,       \
-                   TransportMode mode);                                                 \
-    float pdf_model(const M& m, const Vec2f& uv, const Vec3f& wo, const Vec3f& wi);     \
-    BsdfSample sample_model(const M& m, const Vec2f& uv, const Vec3f& wo, float u_lobe, \
-                            const Vec2f& u, TransportMode mode);                        \
-    BsdfLobes model_lobes(const M& m);                                                  \
-    RoughnessClass model_class_at(const M& m, const Vec2f& uv);                         \
+#define GDMLT_DECLARE_BSDF_MODEL(M)                                                            \
+    Rgb eval_model(const M& m, const TexturePoint& at, const Vec3f& wo, const Vec3f& wi,       \
+                   TransportMode mode);                                                        \
+    float pdf_model(const M& m, const TexturePoint& at, const Vec3f& wo, const Vec3f& wi);     \
+    BsdfSample sample_model(const M& m, const TexturePoint& at, const Vec3f& wo, float u_lobe, \
+                            const Vec2f& u, TransportMode mode);                               \
+    BsdfLobes model_lobes(const M& m);                                                         \
+    RoughnessClass model_class_at(const M& m, const TexturePoint& at);                         \
     RoughnessClass model_class(const M& m);
 
 GDMLT_DECLARE_BSDF_MODEL(DiffuseBsdf)

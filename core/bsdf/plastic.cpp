@@ -80,8 +80,9 @@ float specular_sampling_weight(const RgbTexture& diffuse, const RgbTexture& spec
     return s_mean + d_mean > 0.f ? s_mean / (s_mean + d_mean) : 0.5f;
 }
 
-Rgb base_albedo(const RgbTexture& diffuse, const Vec2f& uv, bool nonlinear, float r_internal) {
-    const Rgb albedo = diffuse.eval(uv);
+Rgb base_albedo(const RgbTexture& diffuse, const TexturePoint& at, bool nonlinear,
+                float r_internal) {
+    const Rgb albedo = diffuse.eval(at);
     if (nonlinear) return albedo / (1.f - albedo * r_internal);
     return albedo / (1.f - r_internal);
 }
@@ -173,23 +174,23 @@ float plastic_specular_probability(float f_i, float weight) {
 }
 }  // namespace
 
-Rgb eval_model(const PlasticBsdf& b, const Vec2f& uv, const Vec3f& wo, const Vec3f& wi,
+Rgb eval_model(const PlasticBsdf& b, const TexturePoint& at, const Vec3f& wo, const Vec3f& wi,
                TransportMode) {
     if (!(cos_theta(wo) > 0.f) || !(cos_theta(wi) > 0.f)) return Rgb::Zero();
     const float f_i = fresnel_dielectric(cos_theta(wo), b.eta).reflectance;
     const float f_o = fresnel_dielectric(cos_theta(wi), b.eta).reflectance;
-    return base_albedo(b.diffuse_reflectance, uv, b.nonlinear, b.fdr_internal) *
+    return base_albedo(b.diffuse_reflectance, at, b.nonlinear, b.fdr_internal) *
            (kInvPi * cos_theta(wi) * (1.f - f_i) * (1.f - f_o) / (b.eta * b.eta));
 }
 
-float pdf_model(const PlasticBsdf& b, const Vec2f&, const Vec3f& wo, const Vec3f& wi) {
+float pdf_model(const PlasticBsdf& b, const TexturePoint&, const Vec3f& wo, const Vec3f& wi) {
     if (!(cos_theta(wo) > 0.f) || !(cos_theta(wi) > 0.f)) return 0.f;
     const float f_i = fresnel_dielectric(cos_theta(wo), b.eta).reflectance;
     const float p_spec = plastic_specular_probability(f_i, b.specular_sampling_weight);
     return (1.f - p_spec) * warp::square_to_cosine_hemisphere_pdf_solid_angle(wi);
 }
 
-BsdfSample sample_model(const PlasticBsdf& b, const Vec2f& uv, const Vec3f& wo, float u_lobe,
+BsdfSample sample_model(const PlasticBsdf& b, const TexturePoint& at, const Vec3f& wo, float u_lobe,
                         const Vec2f& u, TransportMode mode) {
     BsdfSample s;
     if (!(cos_theta(wo) > 0.f)) return s;
@@ -200,7 +201,7 @@ BsdfSample sample_model(const PlasticBsdf& b, const Vec2f& uv, const Vec3f& wo, 
         s.pdf_solid_angle = p_spec;
         s.delta = true;
         s.sampled_class = RoughnessClass::Delta;
-        s.weight = b.specular_reflectance.eval(uv) * (f_i / p_spec);
+        s.weight = b.specular_reflectance.eval(at) * (f_i / p_spec);
         return s;
     }
     s.wi = warp::square_to_cosine_hemisphere(u);
@@ -209,7 +210,7 @@ BsdfSample sample_model(const PlasticBsdf& b, const Vec2f& uv, const Vec3f& wo, 
         s = BsdfSample{};
         return s;
     }
-    s.weight = eval_model(b, uv, wo, s.wi, mode) / s.pdf_solid_angle;
+    s.weight = eval_model(b, at, wo, s.wi, mode) / s.pdf_solid_angle;
     s.sampled_class = RoughnessClass::Diffuse;
     return s;
 }
@@ -224,7 +225,7 @@ BsdfLobes model_lobes(const PlasticBsdf&) {
 RoughnessClass model_class(const PlasticBsdf&) {
     return RoughnessClass::Diffuse;
 }
-RoughnessClass model_class_at(const PlasticBsdf&, const Vec2f&) {
+RoughnessClass model_class_at(const PlasticBsdf&, const TexturePoint&) {
     return RoughnessClass::Diffuse;
 }
 
@@ -241,7 +242,7 @@ MicrofacetDistribution coat_distribution(const RoughPlasticBsdf& b) {
 }
 }  // namespace
 
-Rgb eval_model(const RoughPlasticBsdf& b, const Vec2f& uv, const Vec3f& wo, const Vec3f& wi,
+Rgb eval_model(const RoughPlasticBsdf& b, const TexturePoint& at, const Vec3f& wo, const Vec3f& wi,
                TransportMode) {
     if (!(cos_theta(wo) > 0.f) || !(cos_theta(wi) > 0.f)) return Rgb::Zero();
     Rgb value = Rgb::Zero();
@@ -250,16 +251,16 @@ Rgb eval_model(const RoughPlasticBsdf& b, const Vec2f& uv, const Vec3f& wo, cons
     const float D = d.D(h);
     if (D > 0.f) {
         const float F = fresnel_dielectric(wo.dot(h), b.eta).reflectance;
-        value = b.specular_reflectance.eval(uv) * (F * D * d.G(wo, wi, h) / (4.f * cos_theta(wo)));
+        value = b.specular_reflectance.eval(at) * (F * D * d.G(wo, wi, h) / (4.f * cos_theta(wo)));
     }
     const float t_i = b.table->transmittance(cos_theta(wo)),
                 t_o = b.table->transmittance(cos_theta(wi));
-    value += base_albedo(b.diffuse_reflectance, uv, b.nonlinear, b.table->internal_reflectance) *
+    value += base_albedo(b.diffuse_reflectance, at, b.nonlinear, b.table->internal_reflectance) *
              (kInvPi * cos_theta(wi) * t_i * t_o / (b.eta * b.eta));
     return value;
 }
 
-float pdf_model(const RoughPlasticBsdf& b, const Vec2f&, const Vec3f& wo, const Vec3f& wi) {
+float pdf_model(const RoughPlasticBsdf& b, const TexturePoint&, const Vec3f& wo, const Vec3f& wi) {
     if (!(cos_theta(wo) > 0.f) || !(cos_theta(wi) > 0.f)) return 0.f;
     const float p_spec =
         rough_plastic_specular_probability(b, b.table->transmittance(cos_theta(wo)));
@@ -272,8 +273,8 @@ float pdf_model(const RoughPlasticBsdf& b, const Vec2f&, const Vec3f& wo, const 
            (1.f - p_spec) * warp::square_to_cosine_hemisphere_pdf_solid_angle(wi);
 }
 
-BsdfSample sample_model(const RoughPlasticBsdf& b, const Vec2f& uv, const Vec3f& wo, float u_lobe,
-                        const Vec2f& u, TransportMode mode) {
+BsdfSample sample_model(const RoughPlasticBsdf& b, const TexturePoint& at, const Vec3f& wo,
+                        float u_lobe, const Vec2f& u, TransportMode mode) {
     BsdfSample s;
     if (!(cos_theta(wo) > 0.f)) return s;
     const float p_spec =
@@ -292,12 +293,12 @@ BsdfSample sample_model(const RoughPlasticBsdf& b, const Vec2f& uv, const Vec3f&
         return s;
     }
     // A mixture: the weight is the whole BSDF over the whole density (one-sample MIS).
-    s.pdf_solid_angle = pdf_model(b, uv, wo, s.wi);
+    s.pdf_solid_angle = pdf_model(b, at, wo, s.wi);
     if (!(s.pdf_solid_angle > 0.f)) {
         s = BsdfSample{};
         return s;
     }
-    s.weight = eval_model(b, uv, wo, s.wi, mode) / s.pdf_solid_angle;
+    s.weight = eval_model(b, at, wo, s.wi, mode) / s.pdf_solid_angle;
     return s;
 }
 
@@ -312,7 +313,7 @@ BsdfLobes model_lobes(const RoughPlasticBsdf& b) {
 RoughnessClass model_class(const RoughPlasticBsdf&) {
     return RoughnessClass::Diffuse;
 }
-RoughnessClass model_class_at(const RoughPlasticBsdf&, const Vec2f&) {
+RoughnessClass model_class_at(const RoughPlasticBsdf&, const TexturePoint&) {
     return RoughnessClass::Diffuse;
 }
 

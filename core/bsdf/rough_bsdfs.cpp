@@ -38,39 +38,40 @@ Vec3f sample_microfacet(const MicrofacetDistribution& d, bool sample_visible, co
 
 // --- Rough conductor -------------------------------------------------------------------------
 
-Rgb eval_model(const RoughConductorBsdf& b, const Vec2f& uv, const Vec3f& wo, const Vec3f& wi,
-               TransportMode) {
+Rgb eval_model(const RoughConductorBsdf& b, const TexturePoint& at, const Vec3f& wo,
+               const Vec3f& wi, TransportMode) {
     if (!(cos_theta(wo) > 0.f) || !(cos_theta(wi) > 0.f)) return Rgb::Zero();
     Vec3f h = wo + wi;
     const float len = h.norm();
     if (!(len > 0.f)) return Rgb::Zero();
     h /= len;
-    const MicrofacetDistribution d = b.roughness.at(uv);
+    const MicrofacetDistribution d = b.roughness.at(at);
     const float D = d.D(h);
     if (D == 0.f) return Rgb::Zero();
     // f cos(theta_i) = F D G / (4 cos_o cos_i) * cos_i (Walter eq. 20).
     const float value = D * d.G(wo, wi, h) / (4.f * cos_theta(wo));
-    Rgb f = b.specular_reflectance.eval(uv) * value;
+    Rgb f = b.specular_reflectance.eval(at) * value;
     if (!b.perfect_mirror) f *= fresnel_conductor(wo.dot(h), b.eta, b.k);
     return f;
 }
 
-float pdf_model(const RoughConductorBsdf& b, const Vec2f& uv, const Vec3f& wo, const Vec3f& wi) {
+float pdf_model(const RoughConductorBsdf& b, const TexturePoint& at, const Vec3f& wo,
+                const Vec3f& wi) {
     if (!(cos_theta(wo) > 0.f) || !(cos_theta(wi) > 0.f)) return 0.f;
     Vec3f h = wo + wi;
     const float len = h.norm();
     if (!(len > 0.f)) return 0.f;
     h /= len;
-    const MicrofacetDistribution d = b.roughness.at(uv);
+    const MicrofacetDistribution d = b.roughness.at(at);
     // Reflection Jacobian d omega_h / d omega_i = 1 / (4 |wi.h|) (Walter eq. 14).
     return microfacet_pdf(d, b.roughness.sample_visible, wo, h) / (4.f * wi.dot(h));
 }
 
-BsdfSample sample_model(const RoughConductorBsdf& b, const Vec2f& uv, const Vec3f& wo, float,
+BsdfSample sample_model(const RoughConductorBsdf& b, const TexturePoint& at, const Vec3f& wo, float,
                         const Vec2f& u, TransportMode) {
     BsdfSample s;
     if (!(cos_theta(wo) > 0.f)) return s;
-    const MicrofacetDistribution d = b.roughness.at(uv);
+    const MicrofacetDistribution d = b.roughness.at(at);
     const Vec3f m = sample_microfacet(d, b.roughness.sample_visible, wo, u);
     const float wo_m = wo.dot(m);
     if (!(wo_m > 0.f) || !(m.z() > 0.f)) return s;
@@ -88,9 +89,9 @@ BsdfSample sample_model(const RoughConductorBsdf& b, const Vec2f& uv, const Vec3
     // (Heitz & d'Eon 2014, eq. 14); otherwise G (wo.m) / (cos_o cos_m).
     const float g = b.roughness.sample_visible ? d.G1(s.wi, m)
                                                : d.G(wo, s.wi, m) * wo_m / (cos_theta(wo) * m.z());
-    s.weight = b.specular_reflectance.eval(uv) * g;
+    s.weight = b.specular_reflectance.eval(at) * g;
     if (!b.perfect_mirror) s.weight *= fresnel_conductor(wo_m, b.eta, b.k);
-    s.sampled_class = b.roughness.roughness_class_at(uv);
+    s.sampled_class = b.roughness.roughness_class_at(at);
     return s;
 }
 
@@ -105,8 +106,8 @@ BsdfLobes model_lobes(const RoughConductorBsdf& b) {
 RoughnessClass model_class(const RoughConductorBsdf& b) {
     return b.roughness.roughness_class();
 }
-RoughnessClass model_class_at(const RoughConductorBsdf& b, const Vec2f& uv) {
-    return b.roughness.roughness_class_at(uv);
+RoughnessClass model_class_at(const RoughConductorBsdf& b, const TexturePoint& at) {
+    return b.roughness.roughness_class_at(at);
 }
 
 // --- Rough dielectric ------------------------------------------------------------------------
@@ -156,18 +157,18 @@ float pair_fresnel(const RoughDielectricBsdf& b, const DielectricPair& p, float 
 
 }  // namespace
 
-Rgb eval_model(const RoughDielectricBsdf& b, const Vec2f& uv, const Vec3f& wo, const Vec3f& wi,
-               TransportMode mode) {
+Rgb eval_model(const RoughDielectricBsdf& b, const TexturePoint& at, const Vec3f& wo,
+               const Vec3f& wi, TransportMode mode) {
     DielectricPair p;
     if (!dielectric_pair(b, wo, wi, &p)) return Rgb::Zero();
-    const MicrofacetDistribution d = b.roughness.at(uv);
+    const MicrofacetDistribution d = b.roughness.at(at);
     const float D = d.D(p.h);
     if (D == 0.f) return Rgb::Zero();
     const float G = d.G(wo, wi, p.h);
     const float wo_h = wo.dot(p.h), wi_h = wi.dot(p.h);
     const float F = pair_fresnel(b, p, wo_h, wi_h, cos_theta(wo) > 0.f);
     const float abs_cos_o = std::abs(cos_theta(wo));
-    if (p.reflection) return b.specular_reflectance.eval(uv) * (F * D * G / (4.f * abs_cos_o));
+    if (p.reflection) return b.specular_reflectance.eval(at) * (F * D * G / (4.f * abs_cos_o));
     // Walter eq. 21 times |cos_i|, written with eta_rel = eta_i / eta_o (their i, o = our wi,
     // wo): |wi.h| |wo.h| (1 - F) D G / (|cos_o| (wo.h + eta_rel wi.h)^2). This is the radiance
     // BSDF; the adjoint (importance) BSDF carries eta_rel^2 more (Veach 1997, eq. 5.13).
@@ -175,13 +176,14 @@ Rgb eval_model(const RoughDielectricBsdf& b, const Vec2f& uv, const Vec3f& wo, c
     if (denom == 0.f) return Rgb::Zero();
     float value = std::abs(wo_h * wi_h) * (1.f - F) * D * G / (abs_cos_o * denom * denom);
     if (mode == TransportMode::Importance) value *= p.eta_rel * p.eta_rel;
-    return b.specular_transmittance.eval(uv) * value;
+    return b.specular_transmittance.eval(at) * value;
 }
 
-float pdf_model(const RoughDielectricBsdf& b, const Vec2f& uv, const Vec3f& wo, const Vec3f& wi) {
+float pdf_model(const RoughDielectricBsdf& b, const TexturePoint& at, const Vec3f& wo,
+                const Vec3f& wi) {
     DielectricPair p;
     if (!dielectric_pair(b, wo, wi, &p)) return 0.f;
-    const MicrofacetDistribution d = b.roughness.at(uv);
+    const MicrofacetDistribution d = b.roughness.at(at);
     const float pdf_m = microfacet_pdf(d, b.roughness.sample_visible, wo, p.h);
     const float wo_h = wo.dot(p.h), wi_h = wi.dot(p.h);
     const float F = pair_fresnel(b, p, wo_h, wi_h, cos_theta(wo) > 0.f);
@@ -189,19 +191,19 @@ float pdf_model(const RoughDielectricBsdf& b, const Vec2f& uv, const Vec3f& wo, 
     return pdf_m * (1.f - F) * refraction_jacobian(wo_h, wi_h, p.eta_rel);
 }
 
-BsdfSample sample_model(const RoughDielectricBsdf& b, const Vec2f& uv, const Vec3f& wo,
+BsdfSample sample_model(const RoughDielectricBsdf& b, const TexturePoint& at, const Vec3f& wo,
                         float u_lobe, const Vec2f& u, TransportMode mode) {
     BsdfSample s;
     const float cos_o = cos_theta(wo);
     if (cos_o == 0.f || !std::isfinite(cos_o)) return s;
-    const MicrofacetDistribution d = b.roughness.at(uv);
+    const MicrofacetDistribution d = b.roughness.at(at);
     const Vec3f m = sample_microfacet(d, b.roughness.sample_visible, wo, u);
     const float wo_m = wo.dot(m);
     if (!(m.z() > 0.f) || !(wo_m * cos_o > 0.f)) return s;
     const float pdf_m = microfacet_pdf(d, b.roughness.sample_visible, wo, m);
     if (!(pdf_m > 0.f)) return s;
     const FresnelDielectric f = fresnel_dielectric(wo_m, b.eta);
-    s.sampled_class = b.roughness.roughness_class_at(uv);
+    s.sampled_class = b.roughness.roughness_class_at(at);
     const bool visible = b.roughness.sample_visible;
     // Reflection with probability F(wo.m), so that F cancels from the weight (Walter Sec. 5.3).
     if (u_lobe < f.reflectance) {
@@ -214,7 +216,7 @@ BsdfSample sample_model(const RoughDielectricBsdf& b, const Vec2f& uv, const Vec
         s.pdf_solid_angle = pdf_m * f.reflectance / (4.f * wi_m);
         const float g =
             visible ? d.G1(s.wi, m) : d.G(wo, s.wi, m) * wi_m / (std::abs(cos_o) * m.z());
-        s.weight = b.specular_reflectance.eval(uv) * g;
+        s.weight = b.specular_reflectance.eval(at) * g;
         return s;
     }
     // Refraction about m (Walter eq. 40); f.cos_theta_t is signed along m.
@@ -233,7 +235,7 @@ BsdfSample sample_model(const RoughDielectricBsdf& b, const Vec2f& uv, const Vec
     float g =
         visible ? d.G1(s.wi, m) : d.G(wo, s.wi, m) * std::abs(wo_m) / (std::abs(cos_o) * m.z());
     if (mode == TransportMode::Radiance) g /= eta_rel * eta_rel;
-    s.weight = b.specular_transmittance.eval(uv) * g;
+    s.weight = b.specular_transmittance.eval(at) * g;
     return s;
 }
 
@@ -246,8 +248,8 @@ BsdfLobes model_lobes(const RoughDielectricBsdf& b) {
 RoughnessClass model_class(const RoughDielectricBsdf& b) {
     return b.roughness.roughness_class();
 }
-RoughnessClass model_class_at(const RoughDielectricBsdf& b, const Vec2f& uv) {
-    return b.roughness.roughness_class_at(uv);
+RoughnessClass model_class_at(const RoughDielectricBsdf& b, const TexturePoint& at) {
+    return b.roughness.roughness_class_at(at);
 }
 
 }  // namespace gdmlt::detail

@@ -6,6 +6,7 @@
 
 #include "core/math/frame.h"
 #include "core/math/types.h"
+#include "core/texture/texture_point.h"
 
 namespace gdmlt {
 
@@ -24,6 +25,9 @@ struct SurfaceInteraction {
     std::uint32_t primitive = 0;
 
     bool valid() const { return shape >= 0; }
+    /// Where the surface's textures are looked up (surface_param holds the barycentrics on
+    /// triangles, which only mesh attributes read).
+    TexturePoint texture_point() const { return {uv, shape, primitive, surface_param}; }
 };
 
 }  // namespace gdmlt

@@ -36,11 +36,21 @@ using Triangle = std::array<std::size_t, 3>;
 
 /// What a reader produces before triangulation. Normals and uvs are per vertex and either
 /// empty or as many as there are positions.
+/// A PLY file's extra per-vertex or per-face values (Mitsuba 3's mesh attributes), `dim` per
+/// vertex or face in file order.
+struct SoupAttribute {
+    std::string name;
+    int dim = 1;
+    bool per_face = false;
+    std::vector<double> values;
+};
+
 struct PolygonSoup {
     std::vector<Vec3d> positions;
     std::vector<Vec3d> normals;
     std::vector<Vec2d> uvs;
     std::vector<Polygon> polygons;
+    std::vector<SoupAttribute> attributes;
 };
 
 /// Any failure while reading: the caller adds the scene location and file name.
@@ -379,6 +389,86 @@ bool read_face_indices_any_type(PlyElement& element, const char* name, Polygon& 
            read_face_indices<std::uint8_t>(element, name, polygon);
 }
 
+/// Which of an element's properties form Mitsuba 3's mesh attributes (src/shapes/ply.h,
+/// find_other_fields): r, g, b (or red, green, blue) become `{kind}color`; consecutive
+/// `{prefix}_{x|y|z|w}`, `_{r|g|b|a}`, `_{0|1|2|3}` or `_{1|2|3|4}` become `{kind}{prefix}`
+/// (`{kind}{prefix}_color` for r, g, b), kept when they have 1 or 3 fields, as Mitsuba keeps
+/// them. `kind` is "vertex_" or "face_"; only float and double properties are read.
+struct AttributeSpec {
+    std::string name;
+    std::vector<std::string> properties;
+};
+std::vector<AttributeSpec> find_attributes(PlyElement& element, const std::string& kind,
+                                           const std::vector<std::string>& reserved) {
+    std::vector<AttributeSpec> specs;
+    std::vector<std::string> skip = reserved;
+    for (const auto& names : {std::array<const char*, 3>{"r", "g", "b"},
+                              std::array<const char*, 3>{"red", "green", "blue"}}) {
+        if (has_real_property(element, names[0]) && has_real_property(element, names[1]) &&
+            has_real_property(element, names[2])) {
+            specs.push_back({kind + "color", {names[0], names[1], names[2]}});
+            break;
+        }
+    }
+    for (const char* name : {"r", "g", "b", "a", "red", "green", "blue", "alpha"})
+        skip.emplace_back(name);
+    static constexpr std::array<const char*, 4> kCategories = {"xyzw", "rgba", "0123", "1234"};
+    std::string prefix;
+    int category = -1;
+    std::vector<std::string> fields;
+    const auto flush = [&] {
+        if (fields.size() == 1 || fields.size() == 3)
+            specs.push_back({kind + prefix + (category == 1 ? "_color" : ""), fields});
+        fields.clear();
+        category = -1;
+    };
+    for (std::size_t k = 0; k < element.number_of_properties(); ++k) {
+        const std::string& name = element.property(k)->name();
+        const std::size_t underscore = name.rfind('_');
+        const bool candidate = std::find(skip.begin(), skip.end(), name) == skip.end() &&
+                               underscore != std::string::npos && underscore > 0 &&
+                               underscore + 2 == name.size() &&
+                               has_real_property(element, name.c_str());
+        if (!candidate) {
+            flush();
+            continue;
+        }
+        const std::string stem = name.substr(0, underscore);
+        const char post = name.back();
+        if (!fields.empty() && stem == prefix && fields.size() < 4 &&
+            kCategories[static_cast<std::size_t>(category)][fields.size()] == post) {
+            fields.push_back(name);
+            continue;
+        }
+        flush();
+        for (std::size_t c = 0; c < kCategories.size(); ++c)
+            if (kCategories[c][0] == post) {
+                prefix = stem;
+                category = static_cast<int>(c);
+                fields.push_back(name);
+                break;
+            }
+    }
+    flush();
+    return specs;
+}
+
+/// Appends the current item's values of `specs` to the soup's attributes starting at `first`.
+void read_attribute_values(PlyElement& element, const std::vector<AttributeSpec>& specs,
+                           std::vector<SoupAttribute>& attributes, std::size_t first) {
+    for (std::size_t a = 0; a < specs.size(); ++a)
+        for (const std::string& property : specs[a].properties)
+            attributes[first + a].values.push_back(real_property(element, property.c_str()));
+}
+
+std::size_t add_attributes(const std::vector<AttributeSpec>& specs, bool per_face,
+                           std::vector<SoupAttribute>& attributes) {
+    const std::size_t first = attributes.size();
+    for (const AttributeSpec& spec : specs)
+        attributes.push_back({spec.name, static_cast<int>(spec.properties.size()), per_face, {}});
+    return first;
+}
+
 void read_ply_vertices(std::istream& stream, PlyElement& element, PolygonSoup& soup) {
     if (!has_real_property(element, "x") || !has_real_property(element, "y") ||
         !has_real_property(element, "z"))
@@ -395,9 +485,15 @@ void read_ply_vertices(std::istream& stream, PlyElement& element, PolygonSoup& s
             break;
         }
 
+    std::vector<std::string> reserved = {"x", "y", "z", "nx", "ny", "nz"};
+    if (uv_names) reserved.insert(reserved.end(), uv_names->begin(), uv_names->end());
+    const std::vector<AttributeSpec> attributes = find_attributes(element, "vertex_", reserved);
+    const std::size_t first = add_attributes(attributes, false, soup.attributes);
+
     const std::vector<ListReader> lists = list_readers(element);
     for (std::size_t i = 0; i < element.number_of_items(); ++i) {
         read_ply_item(stream, element, lists);
+        read_attribute_values(element, attributes, soup.attributes, first);
         soup.positions.emplace_back(real_property(element, "x"), real_property(element, "y"),
                                     real_property(element, "z"));
         if (has_normals)
@@ -410,9 +506,13 @@ void read_ply_vertices(std::istream& stream, PlyElement& element, PolygonSoup& s
 }
 
 void read_ply_faces(std::istream& stream, PlyElement& element, PolygonSoup& soup) {
+    const std::vector<AttributeSpec> attributes =
+        find_attributes(element, "face_", {"vertex_indices", "vertex_index"});
+    const std::size_t first = add_attributes(attributes, true, soup.attributes);
     const std::vector<ListReader> lists = list_readers(element);
     for (std::size_t i = 0; i < element.number_of_items(); ++i) {
         read_ply_item(stream, element, lists);
+        read_attribute_values(element, attributes, soup.attributes, first);
         Polygon polygon;
         if (!read_face_indices_any_type(element, "vertex_indices", polygon) &&
             !read_face_indices_any_type(element, "vertex_index", polygon))
@@ -762,6 +862,7 @@ TriangleMeshData load_mesh(const std::string& path, const FileLoc& loc, int shap
     }
 
     std::vector<Triangle> triangles;
+    std::vector<std::size_t> triangle_faces;  // the polygon each triangle came from
     for (std::size_t f = 0; f < soup.polygons.size(); ++f) {
         const Polygon& polygon = soup.polygons[f];
         for (std::size_t index : polygon)
@@ -774,17 +875,43 @@ TriangleMeshData load_mesh(const std::string& path, const FileLoc& loc, int shap
             continue;
         }
         triangulate_polygon(soup.positions, polygon, triangles);
+        triangle_faces.resize(triangles.size(), f);
     }
 
+    // Attributes with a value per vertex or face of the file, stored per kept triangle.
+    std::vector<const SoupAttribute*> attributes;
+    for (const SoupAttribute& a : soup.attributes) {
+        const std::size_t count = a.per_face ? soup.polygons.size() : vertex_count;
+        if (a.values.size() != count * static_cast<std::size_t>(a.dim)) continue;
+        attributes.push_back(&a);
+        mesh.attributes.push_back({a.name, a.dim, a.per_face, {}});
+    }
     mesh.indices.reserve(3 * triangles.size());
-    for (const Triangle& t : triangles) {
+    for (std::size_t i = 0; i < triangles.size(); ++i) {
+        const Triangle& t = triangles[i];
         if (is_degenerate(t, mesh.positions)) {
             ++mesh.degenerate_triangles_dropped;
             continue;
         }
         for (std::size_t index : t) mesh.indices.push_back(static_cast<std::uint32_t>(index));
+        for (std::size_t a = 0; a < attributes.size(); ++a) {
+            const SoupAttribute& from = *attributes[a];
+            const auto dim = static_cast<std::size_t>(from.dim);
+            std::vector<float>& to = mesh.attributes[a].values;
+            if (from.per_face) {
+                for (std::size_t c = 0; c < dim; ++c)
+                    to.push_back(static_cast<float>(from.values[triangle_faces[i] * dim + c]));
+            } else {
+                for (std::size_t index : t)
+                    for (std::size_t c = 0; c < dim; ++c)
+                        to.push_back(static_cast<float>(from.values[index * dim + c]));
+            }
+        }
     }
     if (mesh.indices.empty()) throw fail("no (non-degenerate) triangles");
+    for (const MeshAttribute& a : mesh.attributes)
+        for (const float v : a.values)
+            if (!std::isfinite(v)) throw fail("attribute '" + a.name + "' has a non-finite value");
     return mesh;
 }
 

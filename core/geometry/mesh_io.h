@@ -8,6 +8,7 @@
 
 #include "core/math/types.h"
 #include "core/scene/scene_desc.h"
+#include "core/texture/texture_point.h"
 
 namespace gdmlt {
 
@@ -20,6 +21,8 @@ struct TriangleMeshData {
     std::size_t degenerate_triangles_dropped = 0;
     /// The file asks for face normals (a .serialized mesh's flag 0x0010).
     bool face_normals = false;
+    /// PLY files' extra vertex and face properties (Mitsuba 3's mesh attributes), per triangle.
+    std::vector<MeshAttribute> attributes;
 
     std::size_t triangle_count() const { return indices.size() / 3; }
 };

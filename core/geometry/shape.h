@@ -2,6 +2,7 @@
 #pragma once
 // Shapes in world space. Triangle meshes (obj, ply, rectangle, cube, disk), analytic spheres and
 // cylinders.
+#include <memory>
 #include <string>
 #include <variant>
 #include <vector>
@@ -10,6 +11,7 @@
 #include "core/math/types.h"
 #include "core/sampling/alias_table.h"
 #include "core/sampling/warp.h"
+#include "core/texture/texture_point.h"
 
 namespace gdmlt {
 
@@ -19,8 +21,17 @@ struct TriangleMesh {
     std::vector<Vec2f> uvs;        // per vertex; may be empty
     std::vector<std::uint32_t> indices;
     bool flip_normals = false;
+    /// A PLY file's vertex and face attributes (mesh_attribute textures read them), per
+    /// triangle; shared, not copied, with the textures that read them.
+    std::vector<std::shared_ptr<const MeshAttribute>> attributes;
 
     std::size_t triangle_count() const { return indices.size() / 3; }
+    /// The attribute called `name`, or null.
+    std::shared_ptr<const MeshAttribute> attribute(const std::string& name) const {
+        for (const auto& a : attributes)
+            if (a->name == name) return a;
+        return nullptr;
+    }
 };
 
 /// Sphere with exact normals and analytic differentials (Embree intersects it; we project the

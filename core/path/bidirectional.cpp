@@ -78,7 +78,7 @@ Rgb vertex_f(const Scene& scene, const BdptVertex& v, const Vec3f& wi, Transport
     const bool shading_reflects = wo_local.z() * wi_local.z() > 0.f;
     const bool geometric_reflects = si.n_geometric.dot(v.wo) * si.n_geometric.dot(wi) > 0.f;
     if (shading_reflects != geometric_reflects) return Rgb::Zero();
-    Rgb f = scene.bsdf_of(si).eval(si.uv, wo_local, wi_local, mode);
+    Rgb f = scene.bsdf_of(si).eval(si.texture_point(), wo_local, wi_local, mode);
     if (mode == TransportMode::Importance) f *= adjoint_shading_correction(si, v.wo, wi);
     return f;
 }
@@ -108,8 +108,8 @@ float vertex_pdf(const Scene& scene, const BdptVertex& v, const BdptVertex* prev
         case BdptVertex::Kind::Surface: {
             if (!prev) return 0.f;
             const Vec3f wo = direction(v, *prev);
-            const float pdf = scene.bsdf_of(v.si).pdf(v.si.uv, v.si.shading.to_local(wo),
-                                                      v.si.shading.to_local(w));
+            const float pdf = scene.bsdf_of(v.si).pdf(
+                v.si.texture_point(), v.si.shading.to_local(wo), v.si.shading.to_local(w));
             return to_area(pdf, v, next);
         }
     }
@@ -175,7 +175,7 @@ std::size_t random_walk(const Scene& scene, Ray ray, Rgb beta, float pdf_directi
 
         const Bsdf& bsdf = scene.bsdf_of(si);
         const Vec3f wo_local = si.shading.to_local(v.wo);
-        const BsdfSample bs = bsdf.sample(si.uv, wo_local, u_lobe, u, mode);
+        const BsdfSample bs = bsdf.sample(si.texture_point(), wo_local, u_lobe, u, mode);
         if (!bs.valid()) return read;
         const Vec3f wi = si.shading.to_world(bs.wi);
         const float side = si.n_geometric.dot(wi) * si.n_geometric.dot(v.wo);
@@ -187,7 +187,7 @@ std::size_t random_walk(const Scene& scene, Ray ray, Rgb beta, float pdf_directi
             pdf_fwd = 0.f;
         } else {
             pdf_fwd = bs.pdf_solid_angle;
-            pdf_rev = bsdf.pdf(si.uv, bs.wi, wo_local);
+            pdf_rev = bsdf.pdf(si.texture_point(), bs.wi, wo_local);
         }
         beta *= bs.weight;
         if (mode == TransportMode::Importance) beta *= adjoint_shading_correction(si, v.wo, wi);
@@ -490,8 +490,9 @@ void camera_subpath_from_path(const Scene& scene, const Path& path, int vertex_c
         // The vertex before, as the reverse walk from this one would generate it.
         if (!pv.delta) {
             const BdptVertex& here = out.back();
-            const float pdf_rev = scene.bsdf_of(pv.si).pdf(
-                pv.si.uv, pv.si.shading.to_local(pv.wi_world), pv.si.shading.to_local(here.wo));
+            const float pdf_rev =
+                scene.bsdf_of(pv.si).pdf(pv.si.texture_point(), pv.si.shading.to_local(pv.wi_world),
+                                         pv.si.shading.to_local(here.wo));
             BdptVertex& prev = out[out.size() - 2];
             prev.pdf_rev = to_area(pdf_rev, here, prev);
         }

@@ -36,7 +36,7 @@ DiffuseLanes::DiffuseLanes(const Scene& scene) : scene_(&scene), arrays_(1) {
     const auto constant_diffuse = [](const BsdfModel& m, Rgb& albedo) {
         const auto* d = std::get_if<DiffuseBsdf>(&m);
         if (!d || !d->reflectance.is_constant()) return false;
-        albedo = d->reflectance.eval(Vec2f::Zero());
+        albedo = d->reflectance.eval(TexturePoint());
         return is_finite(albedo);
     };
     for (const Bsdf& bsdf : scene.bsdfs()) {

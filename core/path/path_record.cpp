@@ -74,7 +74,7 @@ void sample_camera_path(const Scene& scene, const Vec2f& film_position, SampleSt
                 v.light_visible = !scene.occluded(shadow);
             }
         }
-        const BsdfSample bs = bsdf.sample(si.uv, wo, u_lobe, u_bsdf);
+        const BsdfSample bs = bsdf.sample(si.texture_point(), wo, u_lobe, u_bsdf);
         v.u_lobe = u_lobe;
         v.u_direction = u_bsdf;
         if (bs.valid()) {

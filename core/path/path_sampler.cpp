@@ -55,12 +55,13 @@ bool sample_next_event(const Scene& scene, const SurfaceInteraction& si, const V
     if (!es.valid() || is_black(es.radiance)) return false;
     const Bsdf& bsdf = scene.bsdf_of(si);
     const Vec3f wi = si.shading.to_local(es.wi);
-    const Rgb f = bsdf.eval(si.uv, wo, wi);
+    const Rgb f = bsdf.eval(si.texture_point(), wo, wi);
     if (is_black(f)) return false;
     next_event.shadow = std::isinf(es.distance)
                             ? spawn_ray(si.p, si.n_geometric, es.wi)
                             : spawn_ray_to(si.p, si.n_geometric, es.p, es.n_geometric);
-    const float w = es.delta ? 1.f : power_heuristic(es.pdf_solid_angle, bsdf.pdf(si.uv, wo, wi));
+    const float w =
+        es.delta ? 1.f : power_heuristic(es.pdf_solid_angle, bsdf.pdf(si.texture_point(), wo, wi));
     next_event.contribution = throughput * f * es.radiance * (w / es.pdf_solid_angle);
     next_event.requested = true;
     return true;
@@ -81,7 +82,7 @@ void finish_vertex(const Scene& scene, const SurfaceInteraction& si, const Verte
         sample_next_event(scene, si, wo, u, state.throughput, next_event))
         ++counters.shadow_rays;
 
-    const BsdfSample bs = bsdf.sample(si.uv, wo, u.lobe, u.bsdf);
+    const BsdfSample bs = bsdf.sample(si.texture_point(), wo, u.lobe, u.bsdf);
     if (!bs.valid()) return;
     const Vec3f wi_world = si.shading.to_world(bs.wi);
     // Light leaks through shading normals: a direction on the wrong side of the geometric

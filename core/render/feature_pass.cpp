@@ -57,7 +57,7 @@ FeatureSample sample_features(const Scene& scene, const Ray& camera_ray, const V
 
         const Vec3f wo_world = -ray.direction;
         const Bsdf& bsdf = scene.bsdf_of(si);
-        const bool delta = bsdf.roughness_class_at(si.uv) == RoughnessClass::Delta;
+        const bool delta = bsdf.roughness_class_at(si.texture_point()) == RoughnessClass::Delta;
         // One sample serves both purposes: the continuation at a delta vertex, the albedo
         // estimate at the feature vertex. At a delta vertex the walk takes the likelier lobe
         // (u = 1/2 against the Fresnel reflectance: glass refracts unless it reflects more than
@@ -65,8 +65,8 @@ FeatureSample sample_features(const Scene& scene, const Ray& camera_ray, const V
         // sees through glass is a function of where in the pixel its ray starts, not of a coin:
         // with sampled lobes, sample 0's shape id inside a glass sphere was a coin toss between
         // the room reflected and the room refracted, and ADAP's graph there followed the coin.
-        const BsdfSample bs =
-            bsdf.sample(si.uv, si.shading.to_local(wo_world), delta ? 0.5f : u_lobe, u_direction);
+        const BsdfSample bs = bsdf.sample(si.texture_point(), si.shading.to_local(wo_world),
+                                          delta ? 0.5f : u_lobe, u_direction);
         bool feature_vertex = bounce >= max_specular_bounces || !bs.valid() || !delta;
         Vec3f wi_world = Vec3f::Zero();
         if (!feature_vertex) {

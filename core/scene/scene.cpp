@@ -102,7 +102,7 @@ Scene::Scene(std::vector<Shape> shapes, std::vector<Bsdf> bsdfs, std::vector<Emi
             const std::uint32_t* corner = &mesh->indices[3 * static_cast<std::size_t>(t)];
             emitter_triangles_.push_back(EmitterTriangle{
                 mesh->positions[corner[0]], mesh->positions[corner[1]], mesh->positions[corner[2]],
-                shape.triangle_normal(t), area->radiance.eval(Vec2f::Zero()),
+                shape.triangle_normal(t), area->radiance.eval(TexturePoint()),
                 emitter_selection_.pmf(i), shape.surface_area()});
         }
     }
@@ -402,7 +402,7 @@ Rgb Scene::emitted(const SurfaceInteraction& si, const Vec3f& w) const {
     if (emitter < 0) return Rgb::Zero();
     const auto& area = std::get<AreaEmitter>(emitters_[static_cast<std::size_t>(emitter)]);
     if (si.n_geometric.dot(w) <= 0.f) return Rgb::Zero();  // emits from the front side only
-    return area.radiance.eval(si.uv);
+    return area.radiance.eval(si.texture_point());
 }
 
 Rgb Scene::environment(const Vec3f& direction) const {

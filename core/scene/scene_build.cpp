@@ -243,9 +243,21 @@ void transform_mesh(TriangleMesh& mesh, const Transform& world_from_object) {
     for (Vec3f& n : mesh.normals) n = world_from_object.apply_normal(n);
     // A mirroring transform reverses the winding; swap two corners so that the geometric normal
     // (from the winding) keeps agreeing with the transformed vertex normals.
-    if (world_from_object.flips_handedness())
+    if (world_from_object.flips_handedness()) {
         for (std::size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
             std::swap(mesh.indices[t + 1], mesh.indices[t + 2]);
+        // Vertex attributes are stored per corner: their corners 1 and 2 swap likewise.
+        for (auto& attribute : mesh.attributes) {
+            if (attribute->per_face) continue;
+            MeshAttribute swapped = *attribute;
+            const auto dim = static_cast<std::size_t>(swapped.dim);
+            for (std::size_t t = 0; t + 3 * dim <= swapped.values.size(); t += 3 * dim)
+                std::swap_ranges(swapped.values.begin() + static_cast<std::ptrdiff_t>(t + dim),
+                                 swapped.values.begin() + static_cast<std::ptrdiff_t>(t + 2 * dim),
+                                 swapped.values.begin() + static_cast<std::ptrdiff_t>(t + 2 * dim));
+            attribute = std::make_shared<const MeshAttribute>(std::move(swapped));
+        }
+    }
 }
 
 struct Builder {
@@ -265,6 +277,13 @@ struct Builder {
     std::map<std::string, std::size_t> counts;
     /// Loaded images by (file, raw), shared by every texture that names them.
     std::map<std::pair<std::string, bool>, std::shared_ptr<const BitmapData>> bitmaps;
+    /// The mesh_attribute textures, bound to the shapes once they are built.
+    struct MeshAttributeUse {
+        std::string name;
+        FileLoc loc;
+        std::shared_ptr<MeshAttributeBinding> binding;
+    };
+    std::vector<MeshAttributeUse> mesh_attribute_textures;
 
     const ObjectDesc& object(int index) const {
         return desc.objects.at(static_cast<std::size_t>(index));
@@ -422,8 +441,26 @@ struct Builder {
             if (!is_finite(value)) throw InputError(obj.loc, "rawconstant: value must be finite");
             return RgbTexture(value);
         }
+        if (obj.type == "mesh_attribute") {
+            // Mitsuba 3's mesh_attribute: a PLY mesh's vertex_* or face_* values; bound to the
+            // shapes that have them once all shapes are built (bind_mesh_attributes).
+            MeshAttributeTexture m;
+            m.name = props.get_string("name", "");
+            if (m.name.rfind("vertex_", 0) != 0 && m.name.rfind("face_", 0) != 0)
+                throw InputError(
+                    props.loc_of("name"),
+                    "mesh_attribute: name must start with vertex_ or face_ (got '" + m.name + "')");
+            m.scale = static_cast<float>(props.get_float("scale", 1.0));
+            if (!std::isfinite(m.scale))
+                throw InputError(props.loc_of("scale"), "mesh_attribute: scale must be finite");
+            props.check_all_used();
+            m.binding = std::make_shared<MeshAttributeBinding>();
+            mesh_attribute_textures.push_back({m.name, obj.loc, m.binding});
+            return RgbTexture(TextureModel(m));
+        }
         diagnostics.unknown(obj.loc, "unknown texture '" + obj.type +
-                                         "' (supported: bitmap, checkerboard, rawconstant)");
+                                         "' (supported: bitmap, checkerboard, rawconstant, "
+                                         "mesh_attribute)");
         return RgbTexture(Rgb::Constant(0.5f));
     }
 
@@ -433,6 +470,26 @@ struct Builder {
         for (const ObjectDesc& obj : desc.objects)
             if (const auto reason = out_of_scope_reason(obj.tag, obj.type))
                 diagnostics.unknown(obj.loc, out_of_scope_message(obj.tag, obj.type, *reason));
+    }
+
+    /// Gives every mesh_attribute texture the attribute of its name on each shape that has
+    /// one; a name no mesh of the scene has is an error at the texture (Mitsuba 3 fails at
+    /// render time on such a shape).
+    void bind_mesh_attributes() {
+        for (const MeshAttributeUse& use : mesh_attribute_textures) {
+            use.binding->by_shape.assign(shapes.size(), nullptr);
+            bool found = false;
+            for (std::size_t i = 0; i < shapes.size(); ++i) {
+                const auto* mesh = std::get_if<TriangleMesh>(&shapes[i].geometry());
+                if (!mesh) continue;
+                use.binding->by_shape[i] = mesh->attribute(use.name);
+                found = found || use.binding->by_shape[i] != nullptr;
+            }
+            if (!found)
+                throw InputError(
+                    use.loc, "mesh_attribute: no mesh of the scene has an attribute '" + use.name +
+                                 "' (PLY vertex or face properties)");
+        }
     }
 
     void build_root() {
@@ -1138,10 +1195,13 @@ struct Builder {
                 mesh.positions = std::move(data.positions);
                 mesh.uvs = std::move(data.uvs);
                 mesh.indices = std::move(data.indices);
+                for (MeshAttribute& attribute : data.attributes)
+                    mesh.attributes.push_back(
+                        std::make_shared<const MeshAttribute>(std::move(attribute)));
                 if (!face_normals) {
                     mesh.normals = data.normals.empty()
                                        ? compute_vertex_normals(TriangleMeshData{
-                                             mesh.positions, {}, {}, mesh.indices, 0})
+                                             mesh.positions, {}, {}, mesh.indices, 0, false, {}})
                                        : std::move(data.normals);
                 }
             } else {
@@ -1356,9 +1416,10 @@ struct Builder {
 }  // namespace
 
 Scene build_scene(const SceneDesc& desc, const BuildOptions& options) {
-    Builder b{desc, Diagnostics(options.lenient), {}, {}, {}, {}, {}, {}, false, {}, {}, {}, {},
+    Builder b{desc, Diagnostics(options.lenient), {}, {}, {}, {}, {}, {}, false, {}, {}, {}, {}, {},
               {}};
     b.build_root();
+    b.bind_mesh_attributes();
     b.compute_features();
     if (b.emitters.empty())
         std::cerr << desc.scene_file

@@ -103,9 +103,41 @@ Rgb BitmapTexture::eval(const Vec2f& uv_surface) const {
            fy * ((1.f - fx) * d.texel(xa, yb) + fx * d.texel(xb, yb));
 }
 
+std::pair<float, float> MeshAttributeTexture::range() const {
+    float lo = kInfinity, hi = -kInfinity;
+    for (const auto& attribute : binding->by_shape)
+        if (attribute)
+            for (const float v : attribute->values) {
+                lo = std::min(lo, v * scale);
+                hi = std::max(hi, v * scale);
+            }
+    if (!(lo <= hi)) return {0.f, 1.f};
+    return {lo, hi};
+}
+
+Rgb MeshAttributeTexture::mean() const {
+    // The mean of the stored values (per triangle, not per area: this weighs lobes and
+    // classifies, it is not an integral).
+    Rgb sum = Rgb::Zero();
+    double count = 0.0;
+    for (const auto& attribute : binding->by_shape) {
+        if (!attribute) continue;
+        const auto d = static_cast<std::size_t>(attribute->dim);
+        for (std::size_t i = 0; i + d <= attribute->values.size(); i += d) {
+            for (std::size_t c = 0; c < 3; ++c)
+                sum[static_cast<int>(c)] += attribute->values[i + (d == 1 ? 0 : c)];
+            count += 1.0;
+        }
+    }
+    if (count == 0.0) return Rgb::Constant(0.5f);
+    return sum * (scale / static_cast<float>(count));
+}
+
 Rgb RgbTexture::max_value() const {
     if (const auto* c = std::get_if<ConstantTexture>(&texture_)) return c->value;
     if (const auto* b = std::get_if<BitmapTexture>(&texture_)) return b->data->max;
+    if (const auto* m = std::get_if<MeshAttributeTexture>(&texture_))
+        return Rgb::Constant(m->range().second);
     const auto& k = std::get<CheckerboardTexture>(texture_);
     return k.color0.max(k.color1);
 }
@@ -113,13 +145,17 @@ Rgb RgbTexture::max_value() const {
 Rgb RgbTexture::mean_value() const {
     if (const auto* c = std::get_if<ConstantTexture>(&texture_)) return c->value;
     if (const auto* b = std::get_if<BitmapTexture>(&texture_)) return b->data->mean;
+    if (const auto* m = std::get_if<MeshAttributeTexture>(&texture_)) return m->mean();
     const auto& k = std::get<CheckerboardTexture>(texture_);
     return 0.5f * (k.color0 + k.color1);
 }
 
+// A mesh attribute's luminance bounds are its channels' bounds (luminance weighs channels by
+// weights that sum to one).
 float RgbTexture::min_luminance() const {
     if (const auto* c = std::get_if<ConstantTexture>(&texture_)) return luminance(c->value);
     if (const auto* b = std::get_if<BitmapTexture>(&texture_)) return b->data->min_luminance;
+    if (const auto* m = std::get_if<MeshAttributeTexture>(&texture_)) return m->range().first;
     const auto& k = std::get<CheckerboardTexture>(texture_);
     return std::min(luminance(k.color0), luminance(k.color1));
 }
@@ -127,6 +163,7 @@ float RgbTexture::min_luminance() const {
 float RgbTexture::max_luminance() const {
     if (const auto* c = std::get_if<ConstantTexture>(&texture_)) return luminance(c->value);
     if (const auto* b = std::get_if<BitmapTexture>(&texture_)) return b->data->max_luminance;
+    if (const auto* m = std::get_if<MeshAttributeTexture>(&texture_)) return m->range().second;
     const auto& k = std::get<CheckerboardTexture>(texture_);
     return std::max(luminance(k.color0), luminance(k.color1));
 }

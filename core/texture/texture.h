@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
 // Spatially varying parameters (reflectance, radiance, roughness). A closed set of value types:
-// constants, bitmaps and checkerboards, with Mitsuba 3's `bitmap` and `checkerboard` meanings:
+// constants, bitmaps, checkerboards and mesh attributes, with Mitsuba 3's `bitmap`,
+// `checkerboard` and `mesh_attribute` meanings:
 //  - texture space: (u, v) with v = 0 at the first (top) row of the image file, repeated
 //    outside [0, 1)^2 unless `wrap_mode` says otherwise;
 //  - bilinear filtering treats texel (i, j) as the value at ((i + 0.5) / width,
@@ -18,6 +19,7 @@
 #include <vector>
 
 #include "core/math/types.h"
+#include "core/texture/texture_point.h"
 
 namespace gdmlt {
 
@@ -85,7 +87,33 @@ struct CheckerboardTexture {
     }
 };
 
-using TextureModel = std::variant<ConstantTexture, BitmapTexture, CheckerboardTexture>;
+/// Which attribute a mesh_attribute texture reads on each shape (by shape index; null where
+/// the shape has none): filled by the scene builder once the shapes are built.
+struct MeshAttributeBinding {
+    std::vector<std::shared_ptr<const MeshAttribute>> by_shape;
+};
+
+/// Mitsuba 3's `mesh_attribute`: a PLY mesh's `vertex_*` (interpolated) or `face_*` values
+/// times `scale`, zero on shapes without the attribute.
+struct MeshAttributeTexture {
+    std::string name;
+    float scale = 1.f;
+    std::shared_ptr<MeshAttributeBinding> binding;
+
+    Rgb eval(const TexturePoint& at) const {
+        const auto shape = static_cast<std::size_t>(at.shape);
+        if (at.shape < 0 || shape >= binding->by_shape.size() || !binding->by_shape[shape])
+            return Rgb::Zero();
+        return binding->by_shape[shape]->eval(at.primitive, at.barycentric) * scale;
+    }
+    /// Smallest and largest value over the bound attributes' channels ([0, 1] before any is
+    /// bound: Mitsuba expects colours there).
+    std::pair<float, float> range() const;
+    Rgb mean() const;
+};
+
+using TextureModel =
+    std::variant<ConstantTexture, BitmapTexture, CheckerboardTexture, MeshAttributeTexture>;
 
 class RgbTexture {
   public:
@@ -96,10 +124,11 @@ class RgbTexture {
         : texture_(ConstantTexture{Rgb(constant)}) {}
     explicit RgbTexture(TextureModel texture) : texture_(std::move(texture)) {}
 
-    Rgb eval(const Vec2f& uv) const {
+    Rgb eval(const TexturePoint& at) const {
         if (const auto* c = std::get_if<ConstantTexture>(&texture_)) return c->value;
-        if (const auto* b = std::get_if<BitmapTexture>(&texture_)) return b->eval(uv);
-        return std::get<CheckerboardTexture>(texture_).eval(uv);
+        if (const auto* b = std::get_if<BitmapTexture>(&texture_)) return b->eval(at.uv);
+        if (const auto* k = std::get_if<CheckerboardTexture>(&texture_)) return k->eval(at.uv);
+        return std::get<MeshAttributeTexture>(texture_).eval(at);
     }
     bool is_constant() const { return std::holds_alternative<ConstantTexture>(texture_); }
     /// Largest value per channel over the surface (for bounds).
@@ -126,11 +155,11 @@ class FloatTexture {
         : texture_(as_scalar(std::move(texture))),
           constant_(0.f),
           is_constant_(texture_.is_constant()) {
-        if (is_constant_) constant_ = luminance(texture_.eval(Vec2f::Zero()));
+        if (is_constant_) constant_ = luminance(texture_.eval(TexturePoint()));
     }
 
-    float eval(const Vec2f& uv) const {
-        return is_constant_ ? constant_ : luminance(texture_.eval(uv));
+    float eval(const TexturePoint& at) const {
+        return is_constant_ ? constant_ : luminance(texture_.eval(at));
     }
     bool is_constant() const { return is_constant_; }
     float min_value() const { return is_constant_ ? constant_ : texture_.min_luminance(); }

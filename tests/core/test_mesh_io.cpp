@@ -330,6 +330,80 @@ TEST(MeshIo, KeepsPlyVertexNormalsAndUvs) {
     EXPECT_EQ(mesh.uvs[2], Vec2f(0, 1));
 }
 
+/// The attribute called `name` of `mesh`, or null.
+const MeshAttribute* find_attribute(const TriangleMeshData& mesh, const std::string& name) {
+    for (const MeshAttribute& a : mesh.attributes)
+        if (a.name == name) return &a;
+    return nullptr;
+}
+
+TEST(MeshIo, PlyVertexAndFaceAttributesAreGroupedAsMitsubaGroupsThem) {
+    // Mitsuba 3's naming (src/shapes/ply.h): r, g, b -> vertex_color; color_0..2 ->
+    // face_color; weight_0 -> face_weight (one field); a pair (two fields) and an unknown
+    // single property are not attributes. A quad and a triangle: the quad's two triangles both
+    // carry its face values, and vertex values are stored per triangle corner.
+    const TempDir dir;
+    const std::string path =
+        dir.write("attributes.ply",
+                  "ply\nformat ascii 1.0\n"
+                  "element vertex 5\n"
+                  "property float x\nproperty float y\nproperty float z\n"
+                  "property float r\nproperty float g\nproperty float b\n"
+                  "property float pair_0\nproperty float pair_1\nproperty float lonely\n"
+                  "element face 2\n"
+                  "property list uchar int vertex_indices\n"
+                  "property float color_0\nproperty float color_1\nproperty float color_2\n"
+                  "property float weight_0\n"
+                  "end_header\n"
+                  "0 0 0 0.1 0.2 0.3 9 9 9\n"
+                  "1 0 0 0.4 0.5 0.6 9 9 9\n"
+                  "1 1 0 0.7 0.8 0.9 9 9 9\n"
+                  "0 1 0 1.0 1.1 1.2 9 9 9\n"
+                  "2 0 0 0.0 0.0 0.0 9 9 9\n"
+                  "4 0 1 2 3 0.25 0.5 0.75 0.3\n"
+                  "3 1 4 2 1 2 3 0.9\n");
+    const TriangleMeshData mesh = load_mesh(path, kSceneLoc);
+    ASSERT_EQ(mesh.triangle_count(), 3u);
+    std::vector<std::string> names;
+    for (const MeshAttribute& a : mesh.attributes) names.push_back(a.name);
+    EXPECT_EQ(names, (std::vector<std::string>{"vertex_color", "face_color", "face_weight"}));
+
+    const MeshAttribute* colour = find_attribute(mesh, "vertex_color");
+    ASSERT_NE(colour, nullptr);
+    EXPECT_FALSE(colour->per_face);
+    ASSERT_EQ(colour->values.size(), 3u * 3u * 3u);
+    // Each triangle's corners in its index order: corner k of triangle t has the colour of
+    // vertex indices[3 t + k].
+    const float vertex_colours[5][3] = {
+        {0.1f, 0.2f, 0.3f}, {0.4f, 0.5f, 0.6f}, {0.7f, 0.8f, 0.9f}, {1.f, 1.1f, 1.2f}, {0, 0, 0}};
+    for (std::size_t t = 0; t < 3; ++t)
+        for (std::size_t k = 0; k < 3; ++k)
+            for (std::size_t c = 0; c < 3; ++c)
+                EXPECT_FLOAT_EQ(colour->values[(3 * t + k) * 3 + c],
+                                vertex_colours[mesh.indices[3 * t + k]][c]);
+    // Interpolated with the barycentrics (b1, b2) of corners 1 and 2.
+    const Rgb mid = colour->eval(0, Vec2f(0.25f, 0.5f));
+    for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(mid[c],
+                    0.25f * vertex_colours[mesh.indices[0]][c] +
+                        0.25f * vertex_colours[mesh.indices[1]][c] +
+                        0.5f * vertex_colours[mesh.indices[2]][c],
+                    1e-6f);
+
+    const MeshAttribute* face = find_attribute(mesh, "face_color");
+    ASSERT_NE(face, nullptr);
+    EXPECT_TRUE(face->per_face);
+    EXPECT_TRUE((face->eval(0, Vec2f(0.1f, 0.1f)) == Rgb(0.25f, 0.5f, 0.75f)).all());
+    EXPECT_TRUE(
+        (face->eval(1, Vec2f(0.7f, 0.1f)) == Rgb(0.25f, 0.5f, 0.75f)).all());  // the quad's second
+    EXPECT_TRUE((face->eval(2, Vec2f(0.3f, 0.3f)) == Rgb(1.f, 2.f, 3.f)).all());
+    const MeshAttribute* weight = find_attribute(mesh, "face_weight");
+    ASSERT_NE(weight, nullptr);
+    EXPECT_EQ(weight->dim, 1);
+    EXPECT_TRUE(
+        (weight->eval(2, Vec2f(0.3f, 0.3f)) == Rgb::Constant(0.9f)).all());  // one field: grey
+}
+
 TEST(MeshIo, LoadsBinaryPlyQuads) {
     const TempDir dir;
     std::string contents =

@@ -498,6 +498,61 @@ TEST(SceneBuild, MeshNormalDerivativesMatchFiniteDifferences) {
     std::filesystem::remove_all(dir);
 }
 
+TEST(SceneBuild, AMeshAttributeTextureReadsThePlyValuesWhereTheRayLands) {
+    // One triangle with red, green and blue vertex colours as reflectance (Mitsuba 3's
+    // mesh_attribute), once as written and once mirrored by to_world (which swaps two corners
+    // of every triangle to keep the winding: the corner values must swap with them). Where a
+    // ray lands at (x, y) of the triangle, the reflectance is (1 - x - y, x, y) in both.
+    constexpr const char* kSky = R"(<emitter type="constant"/>)";  // nothing in the rays' way
+    const auto dir = std::filesystem::temp_directory_path() / "gdmlt_test_mesh_attribute";
+    std::filesystem::create_directories(dir);
+    const auto path = dir / "rgb.ply";
+    std::ofstream(path) << "ply\nformat ascii 1.0\nelement vertex 3\n"
+                           "property float x\nproperty float y\nproperty float z\n"
+                           "property float r\nproperty float g\nproperty float b\n"
+                           "element face 1\nproperty list uchar int vertex_indices\n"
+                           "end_header\n0 0 0 1 0 0\n1 0 0 0 1 0\n0 1 0 0 0 1\n3 0 1 2\n";
+    const std::string ply =
+        R"(<shape type="ply"><string name="filename" value=")" + path.string() + R"("/>)";
+    const std::string bsdf = R"(<bsdf type="twosided"><bsdf type="diffuse">
+        <texture type="mesh_attribute" name="reflectance"><string name="name" value="vertex_color"/>
+        </texture></bsdf></bsdf>)";
+    const Scene scene = test::scene_from_xml(
+        std::string(kSky) + ply + bsdf + "</shape>" + ply +
+        R"(<transform name="to_world"><scale x="-1"/><translate z="-2"/></transform>)" + bsdf +
+        "</shape>");
+    for (const float mirror : {1.f, -1.f}) {
+        for (const Vec2f& xy : {Vec2f(0.2f, 0.3f), Vec2f(0.6f, 0.1f), Vec2f(0.05f, 0.9f)}) {
+            Ray ray;
+            ray.origin = Vec3f(mirror * xy.x(), xy.y(), 1.f);
+            ray.direction = Vec3f(0.f, 0.f, -1.f);
+            const SurfaceInteraction si = scene.intersect(ray);
+            ASSERT_TRUE(si.valid());
+            EXPECT_NEAR(si.p.z(), mirror > 0.f ? 0.f : -2.f, 1e-5f);
+            const Vec3f up = si.shading.to_local(Vec3f(0.f, 0.f, 1.f));
+            const Rgb reflectance =
+                scene.bsdf_of(si).eval(si.texture_point(), up, up) * kPi / std::abs(up.z());
+            const Rgb expected(1.f - xy.x() - xy.y(), xy.x(), xy.y());
+            for (int c = 0; c < 3; ++c)
+                EXPECT_NEAR(reflectance[c], expected[c], 1e-5f)
+                    << "mirror " << mirror << " at " << xy.transpose() << " channel " << c;
+        }
+    }
+    // A name no mesh has, or one without the vertex_/face_ prefix: errors at the texture.
+    std::string message =
+        build_error(std::string(kSky) + ply +
+                    R"(<bsdf type="diffuse"><texture type="mesh_attribute" name="reflectance">
+        <string name="name" value="vertex_weight"/></texture></bsdf></shape>)");
+    EXPECT_NE(message.find("no mesh of the scene has an attribute 'vertex_weight'"),
+              std::string::npos)
+        << message;
+    message = build_error(std::string(kSky) + ply +
+                          R"(<bsdf type="diffuse"><texture type="mesh_attribute" name="reflectance">
+        <string name="name" value="color"/></texture></bsdf></shape>)");
+    EXPECT_NE(message.find("must start with vertex_ or face_"), std::string::npos) << message;
+    std::filesystem::remove_all(dir);
+}
+
 TEST(SceneBuild, FeaturesSayWhichEffectsOccur) {
     const Scene diffuse_only = test::scene_from_xml(kLight + R"(<shape type="cube"/>)");
     EXPECT_TRUE(diffuse_only.features().has_diffuse);
