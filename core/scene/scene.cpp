@@ -141,7 +141,6 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         const Shape& shape = shapes_[static_cast<std::size_t>(area->shape)];
         const AreaPoint point = sample_area_emitter_point(index, u_remapped, u);
         const Vec3f p = point.p, n = point.n;
-        const Vec2f uv = point.uv;
         const float area_total = shape.surface_area();
         const Vec3f d = p - ref_p;
         const float dist2 = d.squaredNorm();
@@ -160,7 +159,7 @@ EmitterSample Scene::sample_emitter(const Vec3f& ref_p, float u_select, const Ve
         }
         // Area to solid angle: p_omega = p_A * d^2 / |cos theta_light|.
         s.pdf_solid_angle = pmf * dist2 / (cos_light * area_total);
-        s.radiance = area->radiance.eval(uv);
+        s.radiance = area->radiance.eval(point.texture);
     } else if (is_delta_position(e)) {
         const Vec3f position = delta_position_of(e);
         const Vec3f d = position - ref_p;
@@ -248,7 +247,8 @@ Scene::AreaPoint Scene::sample_area_emitter_point(std::size_t index, float u_pri
     }
     out.p = at.p;
     out.n = at.n_geometric;
-    out.uv = at.uv;
+    out.texture = at.texture_point();
+    out.texture.shape = area.shape;  // interaction_at knows the geometry, not its index
     return out;
 }
 
@@ -281,7 +281,7 @@ EmittedRay Scene::sample_emitted_ray(float u_select, const Vec2f& u_position,
         r.origin = point.p;
         r.n_geometric = point.n;
         r.direction = Frame::from_normal(point.n).to_world(local);
-        r.radiance = area.radiance.eval(point.uv);
+        r.radiance = area.radiance.eval(point.texture);
         r.pdf_position = pmf / area_total;
         r.pdf_direction = warp::square_to_cosine_hemisphere_pdf_solid_angle(local);
         if (!(r.pdf_direction > 0.f)) return EmittedRay{};

@@ -243,10 +243,10 @@ class Scene {
     EmitterChoice choose_emitter(float u_select) const;
     struct AreaPoint {
         Vec3f p = Vec3f::Zero(), n = Vec3f::Zero();
-        Vec2f uv = Vec2f::Zero();
+        TexturePoint texture;  // where the radiance texture is read
     };
     /// A point uniformly distributed by area on area emitter `index` (density 1 / area), with
-    /// its uv when the radiance is textured.
+    /// its texture lookup (uv, triangle, barycentrics) when the radiance is textured.
     AreaPoint sample_area_emitter_point(std::size_t index, float u_primitive, const Vec2f& u) const;
 
     std::vector<Shape> shapes_;

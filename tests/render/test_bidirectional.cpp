@@ -467,6 +467,36 @@ TEST(Bdpt, ConvergesToThePathTracerWithCylinders) {
     expect_agreement(scene, 128, 256, 0.0015, Method::Bdpt);
 }
 
+/// An area light whose radiance is a mesh attribute: a quad of two triangles over the floor,
+/// one face red, the other blue (PLY face colours), written under a name per test.
+std::string mesh_attribute_light_xml(const std::string& test) {
+    const std::string path =
+        (std::filesystem::temp_directory_path() / ("gdmlt_test_attribute_light_" + test + ".ply"))
+            .string();
+    std::ofstream(path)
+        << "ply\nformat ascii 1.0\nelement vertex 4\n"
+           "property float x\nproperty float y\nproperty float z\n"
+           "element face 2\nproperty list uchar int vertex_indices\n"
+           "property float color_0\nproperty float color_1\nproperty float color_2\n"
+           "end_header\n-0.8 0.9 -0.8\n0.8 0.9 -0.8\n0.8 0.9 0.8\n-0.8 0.9 0.8\n"
+           "3 0 2 1 6 1 1\n3 0 3 2 1 1 6\n";
+    return floor_and_wall_xml() + R"(<shape type="ply"><string name="filename" value=")" + path +
+           R"("/><bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+            <emitter type="area"><texture type="mesh_attribute" name="radiance">
+            <string name="name" value="face_color"/></texture></emitter></shape>
+        <shape type="sphere"><point name="center" value="0, -0.4, 0"/><float name="radius" value="0.5"/>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0.7"/></bsdf></shape>)";
+}
+
+TEST(Ptracer, ConvergesToThePathTracerUnderAMeshAttributeLight) {
+    // Light tracing emits from points sampled on the light (their face's colour), the path
+    // tracer reaches it by next-event estimation and by BSDF sampling: all three read the
+    // radiance where they are. Seeds 100-107, 8 x 256 of each; relMSE measured 1.0e-4, bound 3e-4.
+    // A sampled point's colour read without its triangle (zero) fails the means.
+    const Scene scene = test::scene_from_xml(mesh_attribute_light_xml("ptracer"));
+    expect_agreement(scene, 256, 256, 3e-4);
+}
+
 TEST(Bdpt, FurnaceClosedEmittingSphereSumsTheGeometricSeries) {
     // Inside a closed sphere whose inner surface emits Le = 1 and reflects with albedo a, the
     // radiance is Le / (1 - a) everywhere: every strategy and Russian roulette without a depth
