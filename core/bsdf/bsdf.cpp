@@ -6,6 +6,7 @@
 
 #include "core/bsdf/bsdf_models.h"
 #include "core/bsdf/fresnel.h"
+#include "core/geometry/interaction.h"
 #include "core/math/frame.h"
 #include "core/sampling/warp.h"
 
@@ -196,25 +197,28 @@ Bsdf Bsdf::two_sided(BsdfModel front, std::optional<BsdfModel> back) {
 }
 
 struct Bsdf::Composite {
-    enum class Kind { Mask, Blend, NormalMap };
+    enum class Kind { Mask, Blend, NormalMap, BumpMap };
     Kind kind = Kind::Mask;
     /// Mask: the opacity (probability of the nested BSDF); blend: the second's probability.
     /// Clamped to [0, 1] where evaluated, as Mitsuba 3's mask and blendbsdf do.
     FloatTexture weight;
     Bsdf first;   // mask, normal map: the nested BSDF
     Bsdf second;  // blend only
-    // Normal map only.
+    // Normal map: the normals; bump map: the height (its scalar value's gradient) and scale.
     RgbTexture normals;
+    float bump_scale = 1.f;
     bool flip_invalid_normals = true;
     bool use_shadowing_function = true;
 
     float weight_at(const TexturePoint& at) const { return std::clamp(weight.eval(at), 0.f, 1.f); }
     bool mask() const { return kind == Kind::Mask; }
-    bool normal_map() const { return kind == Kind::NormalMap; }
+    /// The normal and bump maps: the nested BSDF in a perturbed frame.
+    bool normal_map() const { return kind == Kind::NormalMap || kind == Kind::BumpMap; }
 
     /// The perturbed frame in local shading coordinates (Mitsuba 3.9's normalmap: tangent
     /// (1, 0, 0) projected), given the direction towards the camera side.
     Frame perturbed_frame(const TexturePoint& at, const Vec3f& w_camera) const {
+        if (kind == Kind::BumpMap) return bumped_frame(at, w_camera);
         Vec3f n = (2.f * normals.eval(at) - 1.f).matrix();
         // Flip about the shading normal when the perturbed normal faces away from the side
         // the camera-side direction is on.
@@ -223,6 +227,35 @@ struct Bsdf::Composite {
         const float length = n.norm();
         n = length > 0.f && std::isfinite(length) ? Vec3f(n / length) : Vec3f::UnitZ();
         return Frame::from_normal_and_tangent(n, Vec3f::UnitX());
+    }
+    /// Mitsuba 3's bumpmap frame (src/bsdfs/bumpmap.cpp): dp/du and dp/dv with their
+    /// components along the shading normal replaced by the scaled height's gradient, their
+    /// cross product oriented with the geometric normal, flipped as the normal map's; the
+    /// tangent is dp/du projected (Mitsuba projects it against the local normal in world
+    /// components; the same for isotropic BSDFs, and this one is a frame of the surface).
+    Frame bumped_frame(const TexturePoint& at, const Vec3f& w_camera) const {
+        if (!at.surface) return Frame{};
+        const SurfaceInteraction& si = *at.surface;
+        // dp/du, dp/dv in texture uv (Mitsuba's si.dp_du): the surface's derivatives in its
+        // own parameters times the inverse of d uv / d parameters.
+        const float det = si.duv_du.x() * si.duv_dv.y() - si.duv_dv.x() * si.duv_du.y();
+        if (!(det != 0.f) || !std::isfinite(det)) return Frame{};
+        const Vec3f dp_du_tex = (si.duv_dv.y() * si.dp_du - si.duv_du.y() * si.dp_dv) / det;
+        const Vec3f dp_dv_tex = (si.duv_du.x() * si.dp_dv - si.duv_dv.x() * si.dp_du) / det;
+        const Vec2f grad = bump_scale * normals.gradient(at);
+        const Vec3f& n_s = si.shading.n;
+        const Vec3f dp_du = dp_du_tex + n_s * (grad.x() - n_s.dot(dp_du_tex));
+        const Vec3f dp_dv = dp_dv_tex + n_s * (grad.y() - n_s.dot(dp_dv_tex));
+        Vec3f n_world = dp_du.cross(dp_dv);
+        const float length = n_world.norm();
+        if (!(length > 0.f) || !std::isfinite(length)) return Frame{};
+        n_world /= length;
+        if (si.n_geometric.dot(n_world) < 0.f) n_world = -n_world;
+        Vec3f n = si.shading.to_local(n_world);
+        if (flip_invalid_normals && cos_theta(w_camera) * w_camera.dot(n) <= 0.f)
+            n = Vec3f(-n.x(), -n.y(), n.z());
+        const Vec3f tangent = si.shading.to_local(dp_du_tex);
+        return Frame::from_normal_and_tangent(n, tangent);
     }
     /// Conty Estevez et al. 2019, "A microfacet-based shadowing function to solve the bump
     /// terminator problem" (Ray Tracing Gems, ch. 12): G1 of a GGX-like distribution whose
@@ -259,6 +292,20 @@ Bsdf Bsdf::normal_map(RgbTexture normals, Bsdf nested, bool flip_invalid_normals
     c.kind = Composite::Kind::NormalMap;
     c.first = std::move(nested);
     c.normals = std::move(normals);
+    c.flip_invalid_normals = flip_invalid_normals;
+    c.use_shadowing_function = use_shadowing_function;
+    Bsdf b;
+    b.composite_ = std::make_shared<const Composite>(std::move(c));
+    return b;
+}
+
+Bsdf Bsdf::bump_map(RgbTexture height, float scale, Bsdf nested, bool flip_invalid_normals,
+                    bool use_shadowing_function) {
+    Composite c;
+    c.kind = Composite::Kind::BumpMap;
+    c.first = std::move(nested);
+    c.normals = std::move(height);
+    c.bump_scale = scale;
     c.flip_invalid_normals = flip_invalid_normals;
     c.use_shadowing_function = use_shadowing_function;
     Bsdf b;

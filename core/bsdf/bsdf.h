@@ -200,6 +200,11 @@ using BsdfModel =
 ///    terminator term of Conty Estevez et al. 2019 (`use_shadowing_function`), both on by
 ///    default as in Mitsuba 3.9. In Importance mode it is the adjoint of that BSDF (Veach 1997,
 ///    sec. 3.7.6), so that light tracing and BDPT converge to the path tracer's image.
+///  - Mitsuba 3's `bumpmap`: as the normal map, with the normal of the surface displaced along
+///    its shading normal by scale times the texture (Blinn 1978): dp/du and dp/dv get the
+///    height's gradient as their normal components, n = dp/du x dp/dv oriented with the
+///    geometric normal. It reads the surface's differential geometry (TexturePoint::surface);
+///    a lookup without it sees the surface unperturbed.
 /// front(), back() and is_two_sided() describe a leaf only; callers that look inside the model
 /// (the path tracer's lanes, the manifold walk) treat composites as opaque.
 class Bsdf {
@@ -212,6 +217,8 @@ class Bsdf {
     static Bsdf blend(FloatTexture weight, Bsdf first, Bsdf second);
     static Bsdf normal_map(RgbTexture normals, Bsdf nested, bool flip_invalid_normals = true,
                            bool use_shadowing_function = true);
+    static Bsdf bump_map(RgbTexture height, float scale, Bsdf nested,
+                         bool flip_invalid_normals = true, bool use_shadowing_function = true);
     bool is_composite() const { return composite_ != nullptr; }
 
     Rgb eval(const TexturePoint& at, const Vec3f& wo, const Vec3f& wi,

@@ -17,6 +17,10 @@ struct SurfaceInteraction {
     Vec3f dp_du = Vec3f::Zero(), dp_dv = Vec3f::Zero();
     Vec3f dn_du = Vec3f::Zero(), dn_dv = Vec3f::Zero();  // of the shading normal
     Vec2f uv = Vec2f::Zero();                            // texture coordinates
+    /// d uv / d surface_param, columns: (u, v) along the first and the second parameter
+    /// (identity where uv is the parametrisation itself; a triangle's uv edges on meshes with
+    /// uvs). Bump maps turn dp/du, dp/dv into derivatives in uv with it.
+    Vec2f duv_du = Vec2f::UnitX(), duv_dv = Vec2f::UnitY();
     Vec2f surface_param = Vec2f::Zero();                 // (u, v) the derivatives above refer to:
                                           // barycentrics (b1, b2) on triangles, (phi/2pi,
                                           // theta/pi) on spheres
@@ -26,8 +30,9 @@ struct SurfaceInteraction {
 
     bool valid() const { return shape >= 0; }
     /// Where the surface's textures are looked up (surface_param holds the barycentrics on
-    /// triangles, which only mesh attributes read).
-    TexturePoint texture_point() const { return {uv, shape, primitive, surface_param}; }
+    /// triangles, which only mesh attributes read); it points at this interaction, so use it
+    /// while this lives.
+    TexturePoint texture_point() const { return {uv, shape, primitive, surface_param, this}; }
 };
 
 }  // namespace gdmlt

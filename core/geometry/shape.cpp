@@ -78,10 +78,13 @@ void fill_mesh_interaction(const TriangleMesh& mesh, const Vec3f& n_face, const 
         }
         si.shading = Frame::from_normal_and_tangent(n_shading, tangent);
     }
-    if (!mesh.uvs.empty())
+    if (!mesh.uvs.empty()) {
         si.uv = b0 * mesh.uvs[i0] + b.x() * mesh.uvs[i1] + b.y() * mesh.uvs[i2];
-    else
+        si.duv_du = mesh.uvs[i1] - mesh.uvs[i0];
+        si.duv_dv = mesh.uvs[i2] - mesh.uvs[i0];
+    } else {
         si.uv = b;
+    }
 }
 
 /// Sphere parametrised by u = phi / 2pi, v = theta / pi around the world z axis; fills `si`

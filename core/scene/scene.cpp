@@ -249,6 +249,7 @@ Scene::AreaPoint Scene::sample_area_emitter_point(std::size_t index, float u_pri
     out.n = at.n_geometric;
     out.texture = at.texture_point();
     out.texture.shape = area.shape;  // interaction_at knows the geometry, not its index
+    out.texture.surface = nullptr;   // `at` ends here
     return out;
 }
 

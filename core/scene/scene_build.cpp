@@ -329,6 +329,17 @@ struct Builder {
                 }
             return out;
         }
+        /// The nested `<texture>` children whatever their names, in file order (a bump map's
+        /// height).
+        std::vector<const ChildRef*> nested_textures() {
+            std::vector<const ChildRef*> out;
+            for (std::size_t i = 0; i < obj_.children.size(); ++i)
+                if (builder_.object(obj_.children[i].object).tag == "texture") {
+                    used_.insert(i);
+                    out.push_back(&obj_.children[i]);
+                }
+            return out;
+        }
         /// Reports nested elements that no parameter asked for.
         void check_all_used() const {
             for (std::size_t i = 0; i < obj_.children.size(); ++i)
@@ -983,10 +994,12 @@ struct Builder {
 
     /// The BSDF plugins built as Bsdf composites (wrappers of other BSDFs).
     static bool is_composite_bsdf_type(const std::string& type) {
-        return type == "mask" || type == "blendbsdf" || type == "null" || type == "normalmap";
+        return type == "mask" || type == "blendbsdf" || type == "null" || type == "normalmap" ||
+               type == "bumpmap";
     }
 
-    /// Mitsuba's `mask`, `blendbsdf`, `null` and `normalmap` (see Bsdf's composites).
+    /// Mitsuba's `mask`, `blendbsdf`, `null`, `normalmap` and `bumpmap` (see Bsdf's
+    /// composites).
     Bsdf build_composite_bsdf(const ObjectDesc& obj) {
         Properties props(obj, diagnostics);
         TextureParams textures(*this, obj, props);
@@ -1006,6 +1019,19 @@ struct Builder {
             const bool flip = props.get_bool("flip_invalid_normals", true);
             const bool shadowing = props.get_bool("use_shadowing_function", true);
             bsdf = Bsdf::normal_map(std::move(normals), std::move(nested[0]), flip, shadowing);
+        } else if (obj.type == "bumpmap") {
+            // Mitsuba 3: one nested BSDF and one nested texture, whatever its name.
+            if (nested.size() != 1) throw InputError(obj.loc, "bumpmap expects one nested BSDF");
+            const std::vector<const ChildRef*> heights = textures.nested_textures();
+            if (heights.size() != 1)
+                throw InputError(obj.loc, "bumpmap expects one nested texture (the height)");
+            RgbTexture height = build_texture(object(heights[0]->object));
+            const auto scale = static_cast<float>(props.get_float("scale", 1.0));
+            if (!std::isfinite(scale))
+                throw InputError(props.loc_of("scale"), "bumpmap: scale must be finite");
+            const bool flip = props.get_bool("flip_invalid_normals", true);
+            const bool shadowing = props.get_bool("use_shadowing_function", true);
+            bsdf = Bsdf::bump_map(std::move(height), scale, std::move(nested[0]), flip, shadowing);
         } else if (obj.type == "mask") {
             if (nested.size() != 1) throw InputError(obj.loc, "mask expects one nested BSDF");
             bsdf = Bsdf::mask(textures.scalar("opacity", 0.5f), std::move(nested[0]));

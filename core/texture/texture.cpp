@@ -71,6 +71,29 @@ BitmapData load_bitmap(const std::string& path, bool raw) {
     return make_bitmap_data(image.width, image.height, std::move(texels), path);
 }
 
+Vec2f BitmapTexture::gradient(const Vec2f& uv_surface) const {
+    const BitmapData& d = *data;
+    const Vec2f uv = to_uv.apply(uv_surface);
+    if (filter == FilterMode::Nearest || !uv.allFinite()) return Vec2f::Zero();
+    const float x = uv.x() * static_cast<float>(d.width) - 0.5f;
+    const float y = uv.y() * static_cast<float>(d.height) - 0.5f;
+    const float x0f = std::floor(x), y0f = std::floor(y);
+    const float fx = x - x0f, fy = y - y0f;
+    const int x0 = static_cast<int>(x0f), y0 = static_cast<int>(y0f);
+    const int xa = wrap_index(x0, d.width, wrap), xb = wrap_index(x0 + 1, d.width, wrap);
+    const int ya = wrap_index(y0, d.height, wrap), yb = wrap_index(y0 + 1, d.height, wrap);
+    const float f00 = luminance(d.texel(xa, ya)), f10 = luminance(d.texel(xb, ya));
+    const float f01 = luminance(d.texel(xa, yb)), f11 = luminance(d.texel(xb, yb));
+    // Partials in texel units, to the transformed uv by the resolution, then to surface uv
+    // through to_uv's transpose (the chain rule). Mitsuba 3 (src/textures/bitmap.cpp,
+    // eval_1_grad) scales by the resolution after the transpose, which agrees unless to_uv
+    // mixes u and v on a non-square image.
+    const float df_x = static_cast<float>(d.width) * ((1.f - fy) * (f10 - f00) + fy * (f11 - f01));
+    const float df_y = static_cast<float>(d.height) * ((1.f - fx) * (f01 - f00) + fx * (f11 - f10));
+    const Eigen::Matrix2f& m = to_uv.linear;
+    return {m(0, 0) * df_x + m(1, 0) * df_y, m(0, 1) * df_x + m(1, 1) * df_y};
+}
+
 Rgb BitmapTexture::eval(const Vec2f& uv_surface) const {
     const BitmapData& d = *data;
     const Vec2f uv = to_uv.apply(uv_surface);

@@ -71,6 +71,9 @@ struct BitmapTexture {
     FilterMode filter = FilterMode::Bilinear;
 
     Rgb eval(const Vec2f& uv) const;
+    /// Mitsuba 3's eval_1_grad: the gradient in surface uv of the bilinear interpolation of
+    /// the texels' luminances (zero with nearest filtering), through to_uv by the chain rule.
+    Vec2f gradient(const Vec2f& uv) const;
 };
 
 /// Mitsuba's checkerboard: color0 where floor(2u) and floor(2v) have the same parity (the
@@ -129,6 +132,12 @@ class RgbTexture {
         if (const auto* b = std::get_if<BitmapTexture>(&texture_)) return b->eval(at.uv);
         if (const auto* k = std::get_if<CheckerboardTexture>(&texture_)) return k->eval(at.uv);
         return std::get<MeshAttributeTexture>(texture_).eval(at);
+    }
+    /// The scalar value's gradient in uv (bump maps): bitmaps' (BitmapTexture::gradient), zero
+    /// for the others (constant almost everywhere, or per face), as in Mitsuba 3.
+    Vec2f gradient(const TexturePoint& at) const {
+        if (const auto* b = std::get_if<BitmapTexture>(&texture_)) return b->gradient(at.uv);
+        return Vec2f::Zero();
     }
     bool is_constant() const { return std::holds_alternative<ConstantTexture>(texture_); }
     /// Largest value per channel over the surface (for bounds).

@@ -10,6 +10,8 @@
 
 namespace gdmlt {
 
+struct SurfaceInteraction;
+
 /// A texture lookup: the surface's texture coordinates, and for mesh attributes the shape,
 /// its triangle and the barycentrics (b1, b2) of the point in it (p = (1 - b1 - b2) p0 + b1 p1
 /// + b2 p2). Built from a bare uv (implicitly) where only uv textures can be met.
@@ -18,13 +20,20 @@ struct TexturePoint {
     std::int32_t shape = -1;  // -1: not on a mesh (mesh attributes read as zero)
     std::uint32_t primitive = 0;
     Vec2f barycentric = Vec2f::Zero();
+    /// The surface point itself, for what needs its differential geometry (bump maps read
+    /// dp/du, dp/dv and the frames); null for a bare uv. Valid while the call lasts.
+    const SurfaceInteraction* surface = nullptr;
 
     TexturePoint() = default;
     TexturePoint(const Vec2f& uv_) : uv(uv_) {}  // NOLINT: implicit on purpose
     TexturePoint(float u, float v) : uv(u, v) {}
     TexturePoint(const Vec2f& uv_, std::int32_t shape_, std::uint32_t primitive_,
-                 const Vec2f& barycentric_)
-        : uv(uv_), shape(shape_), primitive(primitive_), barycentric(barycentric_) {}
+                 const Vec2f& barycentric_, const SurfaceInteraction* surface_ = nullptr)
+        : uv(uv_),
+          shape(shape_),
+          primitive(primitive_),
+          barycentric(barycentric_),
+          surface(surface_) {}
 };
 
 /// One named attribute of a mesh, `dim` (1 or 3) floats per value, stored per triangle: a face

@@ -7,10 +7,12 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 
+#include "core/image/image_io.h"
 #include "core/render/render_bdpt.h"
 #include "core/render/render_path.h"
 #include "core/render/render_ptracer.h"
@@ -465,6 +467,54 @@ TEST(Bdpt, ConvergesToThePathTracerWithCylinders) {
     // bound 0.0015.
     const Scene scene = test::scene_from_xml(cylinders_xml());
     expect_agreement(scene, 128, 256, 0.0015, Method::Bdpt);
+}
+
+/// The normal-map scene's floor and sphere under bump maps instead: a height image of
+/// crossed sine waves (written as an EXR under a name per test), scale 0.05 on the floor and
+/// 0.02 on the sphere, diffuse and rough metal beneath.
+std::string bump_mapped_xml(const std::string& test) {
+    const std::string path =
+        (std::filesystem::temp_directory_path() / ("gdmlt_test_bump_" + test + ".exr")).string();
+    Image height(32, 32, 3);
+    for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 32; ++x)
+            for (int c = 0; c < 3; ++c)
+                height(x, y, c) = 0.5f + 0.25f * std::sin(0.6f * static_cast<float>(x)) +
+                                  0.2f * std::cos(0.4f * static_cast<float>(y));
+    write_exr(path, {ExrLayer{"", {"R", "G", "B"}, height}});
+    const std::string texture =
+        R"(<texture type="bitmap"><string name="filename" value=")" + path +
+        R"("/><transform name="to_uv"><scale value="2"/></transform></texture>)";
+    return test::sensor_xml(24, 45.f, "0, 1.5, 5") + R"(
+        <shape type="rectangle"><transform name="to_world"><scale value="3"/><rotate x="1" angle="-90"/>
+            <translate y="-1"/></transform>
+            <bsdf type="bumpmap"><float name="scale" value="0.05"/>)" +
+           texture +
+           R"(<bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.5, 0.4"/></bsdf></bsdf></shape>
+        <shape type="sphere"><point name="center" value="0.2, -0.3, -0.3"/><float name="radius" value="0.7"/>
+            <bsdf type="bumpmap"><float name="scale" value="0.02"/>)" +
+           texture +
+           R"(<bsdf type="roughconductor"><float name="alpha" value="0.25"/></bsdf></bsdf></shape>
+        <emitter type="point"><point name="position" value="1.5, 1.5, 1"/><rgb name="intensity" value="4"/></emitter>
+        <emitter type="spot"><rgb name="intensity" value="20"/><float name="cutoff_angle" value="30"/>
+            <transform name="to_world"><lookat origin="-1.5, 2, 1.5" target="0, -0.5, 0" up="0, 1, 0"/></transform></emitter>
+        <emitter type="constant"><rgb name="radiance" value="0.1"/></emitter>)";
+}
+
+TEST(Ptracer, ConvergesToThePathTracerWithBumpMaps) {
+    // The bump map's frame is a normal map's: its adjoint carries over (Veach 1997, sec.
+    // 3.7.6), and light tracing reads the frame at its own vertices. Seeds 100-107, 8 x 256
+    // of each; relMSE measured 0.0028, bound 0.006 (mean ratio 1.0101 +- 0.0031 here; 1.0023 +-
+    // 0.0017 at 8 x 2048).
+    const Scene scene = test::scene_from_xml(bump_mapped_xml("ptracer"));
+    expect_agreement(scene, 256, 256, 0.006);
+}
+
+TEST(Bdpt, ConvergesToThePathTracerWithBumpMaps) {
+    // Seeds 100-107, 8 x 128 BDPT samples, 8 x 256 path samples; relMSE measured
+    // 0.0012, bound 0.003.
+    const Scene scene = test::scene_from_xml(bump_mapped_xml("bdpt"));
+    expect_agreement(scene, 128, 256, 0.003, Method::Bdpt);
 }
 
 /// An area light whose radiance is a mesh attribute: a quad of two triangles over the floor,
