@@ -508,7 +508,11 @@ struct Builder {
         const ObjectDesc& root = desc.root_object();
         for (const ChildRef& child : root.children) {
             const ObjectDesc& obj = object(child.object);
-            if (obj.tag == "shape") {
+            if (obj.tag == "shape" && obj.type == "shapegroup") {
+                // Declared for the instances that refer to it; built as theirs.
+            } else if (obj.tag == "shape" && obj.type == "instance") {
+                build_instance(obj);
+            } else if (obj.tag == "shape") {
                 build_shape(obj);
             } else if (obj.tag == "bsdf") {
                 bsdf_index(child.object);  // declared for later refs; built once
@@ -1147,9 +1151,46 @@ struct Builder {
         return c;
     }
 
-    void build_shape(const ObjectDesc& obj) {
+    /// Mitsuba 3's `instance` of a `shapegroup`: the group's shapes, each with the instance's
+    /// to_world applied after its own. They are built as shapes of their own (flattened), so
+    /// every integrator, shift and sampler sees ordinary shapes; memory grows with the
+    /// instance count, unlike Embree's instances.
+    void build_instance(const ObjectDesc& obj) {
         Properties props(obj, diagnostics);
-        const Transform world_from_object = props.get_transform("to_world");
+        const Transform world_from_instance = props.get_transform("to_world");
+        props.check_all_used();
+        const ObjectDesc* group = nullptr;
+        for (const ChildRef& child : obj.children) {
+            const ObjectDesc& c = object(child.object);
+            if (c.tag == "shape" && c.type == "shapegroup" && !group)
+                group = &c;
+            else
+                throw InputError(child.loc,
+                                 "an instance takes one shapegroup (got " + describe(c) + ")");
+        }
+        if (!group) throw InputError(obj.loc, "an instance needs a <ref> to a shapegroup");
+        Properties(*group, diagnostics).check_all_used();
+        for (const ChildRef& child : group->children) {
+            const ObjectDesc& c = object(child.object);
+            if (c.tag != "shape" || c.type == "shapegroup" || c.type == "instance")
+                throw InputError(child.loc, "a shapegroup holds shapes only (not " + describe(c) +
+                                                "; nested instancing is not supported)");
+            for (const ChildRef& grandchild : c.children)
+                if (object(grandchild.object).tag == "emitter")
+                    throw InputError(grandchild.loc,
+                                     "a shape in a shapegroup cannot emit (as in Mitsuba 3)");
+            build_shape(c, &world_from_instance);
+        }
+        ++counts["instances"];
+        features.shape_kinds.insert("instance");
+    }
+
+    /// One shape; `outer` (an instance's to_world) applies after the shape's own to_world.
+    void build_shape(const ObjectDesc& obj, const Transform* outer = nullptr) {
+        Properties props(obj, diagnostics);
+        const Transform world_from_object =
+            outer ? Transform(Mat4d(outer->matrix * props.get_transform("to_world").matrix))
+                  : props.get_transform("to_world");
         const bool flip_normals = props.get_bool("flip_normals", false);
         std::optional<Shape> shape;
 
@@ -1234,7 +1275,7 @@ struct Builder {
                 diagnostics.unknown(
                     obj.loc, "unknown shape '" + obj.type +
                                  "' (supported: obj, ply, off, serialized, rectangle, cube, disk, "
-                                 "sphere, cylinder)");
+                                 "sphere, cylinder, shapegroup and instance)");
                 return;
             }
             mesh.flip_normals = flip_normals;

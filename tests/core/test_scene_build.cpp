@@ -553,6 +553,62 @@ TEST(SceneBuild, AMeshAttributeTextureReadsThePlyValuesWhereTheRayLands) {
     std::filesystem::remove_all(dir);
 }
 
+TEST(SceneBuild, AnInstanceIsItsShapegroupsShapesUnderItsTransform) {
+    // Two instances of a group (a sphere and a rectangle, each with its own to_world) against
+    // the same four shapes written out with both transforms: the same hits, ray by ray (400
+    // rays from a grid towards the origin), and the instances counted.
+    const std::string sphere_local = R"(<scale value="0.5"/><translate value="-1, 0, 0"/>)";
+    const std::string rectangle_local = R"(<scale value="1.2"/><rotate y="1" angle="-80"/>)";
+    const std::string outer[2] = {R"(<rotate y="1" angle="45"/><translate z="2"/>)",
+                                  R"(<rotate x="1" angle="-25"/><scale value="1.5"/>)"};
+    std::string grouped = R"(<shape type="shapegroup" id="group">
+        <shape type="sphere"><transform name="to_world">)" +
+                          sphere_local + R"(</transform></shape>
+        <shape type="rectangle"><transform name="to_world">)" +
+                          rectangle_local + R"(</transform></shape></shape>)";
+    std::string flat;
+    for (const std::string& o : outer) {
+        grouped += R"(<shape type="instance"><ref id="group"/><transform name="to_world">)" + o +
+                   "</transform></shape>";
+        flat += R"(<shape type="sphere"><transform name="to_world">)" + sphere_local + o +
+                "</transform></shape>";
+        flat += R"(<shape type="rectangle"><transform name="to_world">)" + rectangle_local + o +
+                "</transform></shape>";
+    }
+    const Scene a = test::scene_from_xml(kLight + grouped);
+    const Scene b = test::scene_from_xml(kLight + flat);
+    EXPECT_EQ(a.counts().at("instances"), 2u);
+    ASSERT_EQ(a.shapes().size(), b.shapes().size());
+    int hits = 0;
+    for (int i = 0; i < 20; ++i)
+        for (int j = 0; j < 20; ++j) {
+            Ray ray;
+            ray.origin = Vec3f(-4.f + 0.4f * static_cast<float>(i),
+                               -4.f + 0.4f * static_cast<float>(j), 8.f);
+            ray.direction = (Vec3f(0.f, 0.f, 0.f) - ray.origin).normalized();
+            const SurfaceInteraction ha = a.intersect(ray), hb = b.intersect(ray);
+            ASSERT_EQ(ha.valid(), hb.valid()) << i << " " << j;
+            if (!ha.valid()) continue;
+            ++hits;
+            EXPECT_EQ(ha.shape, hb.shape);
+            EXPECT_NEAR((ha.p - hb.p).norm(), 0.f, 1e-5f);
+            EXPECT_NEAR((ha.shading.n - hb.shading.n).norm(), 0.f, 1e-5f);
+        }
+    EXPECT_GT(hits, 40);
+    // What an instance may not hold.
+    EXPECT_NE(
+        build_error(kLight + R"(<shape type="instance"/>)").find("needs a <ref> to a shapegroup"),
+        std::string::npos);
+    const std::string emitting = build_error(kLight + R"(<shape type="shapegroup" id="g">
+        <shape type="sphere"><emitter type="area"/></shape></shape>
+        <shape type="instance"><ref id="g"/></shape>)");
+    EXPECT_NE(emitting.find("cannot emit"), std::string::npos) << emitting;
+    const std::string nested = build_error(kLight + R"(<shape type="shapegroup" id="g">
+        <shape type="sphere"/></shape><shape type="shapegroup" id="h"><shape type="instance"><ref id="g"/></shape></shape>
+        <shape type="instance"><ref id="h"/></shape>)");
+    EXPECT_NE(nested.find("nested instancing is not supported"), std::string::npos) << nested;
+}
+
 TEST(SceneBuild, FeaturesSayWhichEffectsOccur) {
     const Scene diffuse_only = test::scene_from_xml(kLight + R"(<shape type="cube"/>)");
     EXPECT_TRUE(diffuse_only.features().has_diffuse);
