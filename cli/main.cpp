@@ -24,6 +24,7 @@
 #include "core/render/adap_selection.h"
 #include "core/render/aov_pass.h"
 #include "core/render/feature_pass.h"
+#include "core/render/film_buffer.h"
 #include "core/render/render_bdpt.h"
 #include "core/render/render_path.h"
 #include "core/render/render_ptracer.h"
@@ -322,6 +323,9 @@ IntegratorResult run_path(const Scene& scene, const RenderOptions& options, Prog
                           const std::string& integrator) {
     RenderSettings settings;
     apply_sample_budget(scene, options, settings);
+    // Mitsuba 3's `moment`: the path tracer's samples' first and second moments in XYZ.
+    const std::string& moment = scene.integrator().moment;
+    settings.second_moment = !moment.empty() && integrator == "path";
 
     IntegratorResult r;
     r.seed = settings.seed;
@@ -350,6 +354,17 @@ IntegratorResult run_path(const Scene& scene, const RenderOptions& options, Prog
     const RenderStats& s = out.stats;
     r.image = out.image;
     r.partial = s.interrupted;
+    if (!out.second_moment.pixels.empty()) {
+        // Layers `<name>.X/Y/Z` (the mean) and `m2_<name>.X/Y/Z`, Mitsuba 3's channel names.
+        Image first(out.image.width, out.image.height, 3);
+        for (std::size_t i = 0; i < out.image.pixel_count(); ++i) {
+            const Vec3f xyz = FilmBuffer::linear_srgb_to_xyz(Rgb(
+                out.image.pixels[3 * i], out.image.pixels[3 * i + 1], out.image.pixels[3 * i + 2]));
+            for (int c = 0; c < 3; ++c) first.pixels[3 * i + static_cast<std::size_t>(c)] = xyz[c];
+        }
+        r.extra_layers.push_back(ExrLayer{moment, {"X", "Y", "Z"}, std::move(first)});
+        r.extra_layers.push_back(ExrLayer{"m2_" + moment, {"X", "Y", "Z"}, out.second_moment});
+    }
     r.stats = {
         {"render_s", s.render_s},
         {"samples", s.samples},
@@ -800,6 +815,17 @@ int run_render(const RenderOptions& options) {
                                          : "sampled and splatted"}};
     // Which camera ran (and, for the thin lens, that its rays draw two more numbers).
     config["camera"] = projection_name(scene.camera().projection());
+    // Mitsuba 3's `moment` layers: written by the path tracer, whose pixels are means of
+    // independent samples; light tracing splats and the chains' and gradient renders' pixels
+    // are not, so they render the image alone (and say so).
+    if (!scene.integrator().moment.empty()) {
+        const bool written = integrator == "path";
+        config["moment_layers"] = written;
+        if (!written && !options.quiet)
+            std::cerr << "warning: moment: the first and second moment layers are written for "
+                         "the path tracer only; "
+                      << integrator << " renders the image alone\n";
+    }
     config["scene"] = options.scene_path;
     config["threads"] = threads;
     config["defines"] = options.defines;

@@ -21,10 +21,10 @@ struct SurfaceInteraction {
     /// (identity where uv is the parametrisation itself; a triangle's uv edges on meshes with
     /// uvs). Bump maps turn dp/du, dp/dv into derivatives in uv with it.
     Vec2f duv_du = Vec2f::UnitX(), duv_dv = Vec2f::UnitY();
-    Vec2f surface_param = Vec2f::Zero();                 // (u, v) the derivatives above refer to:
+    Vec2f surface_param = Vec2f::Zero();  // (u, v) the derivatives above refer to:
                                           // barycentrics (b1, b2) on triangles, (phi/2pi,
                                           // theta/pi) on spheres
-    float t = kInfinity;  // ray distance
+    float t = kInfinity;                  // ray distance
     std::int32_t shape = -1;
     std::uint32_t primitive = 0;
 

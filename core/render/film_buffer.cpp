@@ -20,4 +20,16 @@ Image FilmBuffer::mean() const {
     return image;
 }
 
+Image FilmBuffer::second_moment() const {
+    if (squares_.empty()) return Image();
+    Image image(width_, height_, 3);
+    for (std::size_t i = 0; i < count_.size(); ++i) {
+        if (count_[i] == 0) continue;
+        const double inv = 1.0 / static_cast<double>(count_[i]);
+        for (int c = 0; c < 3; ++c)
+            image.pixels[3 * i + c] = static_cast<float>(squares_[3 * i + c] * inv);
+    }
+    return image;
+}
+
 }  // namespace gdmlt

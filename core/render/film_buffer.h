@@ -2,6 +2,7 @@
 #pragma once
 // Per-pixel accumulation in double with a per-pixel sample count, so that an interrupted
 // render (some pixels with more samples than others) still normalises every pixel correctly.
+// Optionally also the samples' second moments in CIE XYZ (Mitsuba 3's `moment` integrator).
 #include <cstdint>
 #include <vector>
 
@@ -21,10 +22,20 @@ class FilmBuffer {
     int width() const { return width_; }
     int height() const { return height_; }
 
+    /// From now on also sums each sample's squared XYZ values (second_moment).
+    void track_second_moment() {
+        squares_.assign(static_cast<std::size_t>(width_) * height_ * 3, 0.0);
+    }
+
     /// Adds one sample's radiance to pixel (x, y). Not thread-safe for the same pixel.
     void add(int x, int y, const Rgb& value) {
         const std::size_t i = static_cast<std::size_t>(y) * width_ + x;
         for (int c = 0; c < 3; ++c) sum_[3 * i + c] += static_cast<double>(value[c]);
+        if (!squares_.empty()) {
+            const Vec3f xyz = linear_srgb_to_xyz(value);
+            for (int c = 0; c < 3; ++c)
+                squares_[3 * i + c] += static_cast<double>(xyz[c]) * static_cast<double>(xyz[c]);
+        }
         ++count_[i];
     }
     /// Counts a sample that was dropped (non-finite) as taken, contributing zero: dropping
@@ -37,9 +48,21 @@ class FilmBuffer {
     std::uint64_t total_count() const;
     /// Mean per pixel (zero where no sample landed).
     Image mean() const;
+    /// Mean of the samples' squared XYZ values per pixel (after track_second_moment; empty
+    /// before).
+    Image second_moment() const;
+
+    /// Linear sRGB (Rec. 709) to CIE XYZ, Mitsuba 3's srgb_to_xyz matrix (the `moment`
+    /// integrator's channels).
+    static Vec3f linear_srgb_to_xyz(const Rgb& rgb) {
+        return {0.412453f * rgb[0] + 0.357580f * rgb[1] + 0.180423f * rgb[2],
+                0.212671f * rgb[0] + 0.715160f * rgb[1] + 0.072169f * rgb[2],
+                0.019334f * rgb[0] + 0.119193f * rgb[1] + 0.950227f * rgb[2]};
+    }
 
   private:
     int width_, height_;
+    std::vector<double> squares_;  // XYZ, when tracked
     std::vector<double> sum_;
     std::vector<std::uint32_t> count_;
 };

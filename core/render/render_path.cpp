@@ -254,6 +254,7 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
     const bool timed = settings.time_budget_s > 0.0;
 
     FilmBuffer buffer(width, height);
+    if (settings.second_moment) buffer.track_second_moment();
     tbb::enumerable_thread_specific<PathCounters> counters;
     tbb::enumerable_thread_specific<std::uint64_t> dropped(0);
     std::atomic<std::uint64_t> samples_done{0};
@@ -315,7 +316,7 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
     for (const PathCounters& c : counters) stats.counters += c;
     for (std::uint64_t d : dropped) stats.nonfinite_samples_dropped += d;
     stats.samples = buffer.total_count();
-    return RenderOutput{buffer.mean(), stats};
+    return RenderOutput{buffer.mean(), stats, buffer.second_moment()};
 }
 
 }  // namespace gdmlt

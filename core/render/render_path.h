@@ -16,6 +16,9 @@ struct RenderSettings {
     double time_budget_s = 0.0;  // 0: no time limit; otherwise stop after the pass that exceeds it
     std::uint64_t seed = 0;
     PathSamplerSettings path;
+    /// Also the samples' second moments in XYZ (RenderOutput::second_moment; the path tracer
+    /// only, for Mitsuba 3's `moment` integrator).
+    bool second_moment = false;
 };
 
 struct RenderProgress {
@@ -37,6 +40,9 @@ struct RenderStats {
 struct RenderOutput {
     Image image;  // crop window size, linear RGB
     RenderStats stats;
+    /// With RenderSettings::second_moment: per pixel the mean of the samples' squared CIE XYZ
+    /// values (Mitsuba 3's `moment` m2 channels); empty otherwise.
+    Image second_moment;
 };
 
 /// Renders with the path tracer. `cancel` (optional) is polled between tiles; when it becomes

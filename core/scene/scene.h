@@ -52,6 +52,9 @@ struct IntegratorSettings {
     bool hide_emitters = false;
     /// Mitsuba 3's `aov` wrapper: the layers to write beside its nested integrator's image.
     std::vector<AovRequest> aovs;
+    /// Mitsuba 3's `moment` wrapper: the name its layers carry (its nested integrator's
+    /// `name`, or Mitsuba's `_arg_0` for an unnamed one); empty when absent.
+    std::string moment;
     ObjectDesc desc;  // the raw element (type, properties, location), empty when absent
 };
 

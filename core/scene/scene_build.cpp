@@ -551,22 +551,29 @@ struct Builder {
     void build_integrator(const ObjectDesc& obj) {
         if (obj.type == "moment") {
             // Mitsuba 3's `moment` (40 of the scenes in its data repository): the image is its
-            // first nested integrator's; the samples' second moments go to AOV channels, which
-            // are not written here.
+            // first nested integrator's, and the path tracer writes the samples' first and
+            // second moments in XYZ as layers `<name>` and `m2_<name>` (cli/main.cpp).
             const ObjectDesc* nested = nullptr;
+            std::string name;
+            int unnamed = 0;
             for (const ChildRef& child : obj.children) {
                 const ObjectDesc& c = object(child.object);
-                if (c.tag != "integrator")
+                if (c.tag != "integrator") {
                     diagnostics.unknown(c.loc, "unsupported element " + describe(c) +
                                                    " in <integrator type=\"moment\">");
-                else if (!nested)
+                } else if (!nested) {
                     nested = &c;
+                    // Mitsuba names an unnamed child `_arg_<n>`, n counting unnamed children.
+                    name = child.name.empty() ? "_arg_" + std::to_string(unnamed) : child.name;
+                }
+                if (c.tag == "integrator" && child.name.empty()) ++unnamed;
             }
             if (!nested)
                 throw InputError(obj.loc,
                                  "<integrator type=\"moment\"> needs a nested <integrator>");
             Properties(obj, diagnostics).check_all_used();
             build_integrator(*nested);
+            integrator.moment = name;
             return;
         }
         if (obj.type == "aov") {

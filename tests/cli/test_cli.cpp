@@ -131,6 +131,76 @@ TEST_F(Cli, AnAovIntegratorWritesItsLayersWithMitsubasChannelNames) {
         EXPECT_NE(std::find(channels.begin(), channels.end(), name), channels.end()) << name;
 }
 
+/// The text of a file in the test's directory.
+std::string read_text(const fs::path& path) {
+    std::ifstream in(path);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+}
+
+TEST_F(Cli, AMomentIntegratorWritesTheSamplesFirstAndSecondMomentsInXyz) {
+    // Mitsuba 3's `moment` around an unnamed path tracer: layers _arg_0.X/Y/Z (the mean in
+    // XYZ, Mitsuba's srgb_to_xyz of the image) and m2__arg_0.X/Y/Z (the mean of the squares).
+    // In a box lit by a constant environment through an opening every pixel's samples differ,
+    // so m2 > m1^2 somewhere; seen straight into a constant environment every sample of a
+    // pixel is the same, so m2 = m1^2 there (to float rounding). Light tracing renders the
+    // image alone and says so.
+    write("moment.xml", "<scene version=\"3.0.0\">\n" + test::sensor_xml(8, 60.f, "0, 0, 4") +
+                            R"(<integrator type="moment"><integrator type="path"/></integrator>
+                <shape type="rectangle"><transform name="to_world"><translate x="1.2"/></transform></shape>
+                <emitter type="constant"><rgb name="radiance" value="0.3, 0.6, 0.9"/></emitter></scene>)");
+    const Outcome run =
+        run_gdmlt(dir_, "render moment.xml --spp 16 -t 2 -q -o out.exr --stats s.json");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    const std::vector<ExrLayer> layers = read_exr((dir_ / "out.exr").string());
+    const auto layer = [&](const std::string& name) -> const Image& {
+        for (const ExrLayer& l : layers)
+            if (l.name == name) {
+                EXPECT_EQ(l.channel_names, (std::vector<std::string>{"X", "Y", "Z"}));
+                return l.image;
+            }
+        ADD_FAILURE() << "no layer " << name;
+        static const Image none;
+        return none;
+    };
+    const Image& rgb = layers.front().image;
+    const Image& m1 = layer("_arg_0");
+    const Image& m2 = layer("m2__arg_0");
+    ASSERT_EQ(m1.pixel_count(), rgb.pixel_count());
+    ASSERT_EQ(m2.pixel_count(), rgb.pixel_count());
+    int varying = 0, constant = 0;
+    for (std::size_t i = 0; i < rgb.pixel_count(); ++i) {
+        const float r = rgb.pixels[3 * i], g = rgb.pixels[3 * i + 1], b = rgb.pixels[3 * i + 2];
+        EXPECT_NEAR(m1.pixels[3 * i + 1], 0.212671f * r + 0.715160f * g + 0.072169f * b, 1e-5f);
+        bool all_equal = true;
+        for (int c = 0; c < 3; ++c) {
+            const float mean = m1.pixels[3 * i + static_cast<std::size_t>(c)];
+            const float square = m2.pixels[3 * i + static_cast<std::size_t>(c)];
+            EXPECT_GE(square, mean * mean * (1.f - 1e-5f)) << i;  // variance >= 0
+            all_equal = all_equal && std::abs(square - mean * mean) <= 1e-5f * mean * mean;
+        }
+        // The environment seen directly (no rectangle in the pixel): 0.3, 0.6, 0.9 exactly.
+        if (std::abs(r - 0.3f) < 1e-6f && std::abs(b - 0.9f) < 1e-6f) {
+            EXPECT_TRUE(all_equal) << i;
+            ++constant;
+        } else if (!all_equal) {
+            ++varying;
+        }
+    }
+    EXPECT_GT(constant, 0);
+    EXPECT_GT(varying, 0);
+    EXPECT_NE(read_text(dir_ / "s.json").find("\"moment_layers\": true"), std::string::npos);
+    const Outcome lt = run_gdmlt(
+        dir_, "render moment.xml --integrator ptracer --spp 2 -t 2 -o lt.exr --stats s.json");
+    ASSERT_EQ(lt.exit_code, 0) << lt.output;
+    EXPECT_NE(lt.output.find("moment layers are written for the path tracer only"),
+              std::string::npos)
+        << lt.output;
+    EXPECT_EQ(read_exr((dir_ / "lt.exr").string()).size(), 1u);
+    EXPECT_NE(read_text(dir_ / "s.json").find("\"moment_layers\": false"), std::string::npos);
+}
+
 TEST_F(Cli, RenderCreatesMissingOutputDirectoriesOfARelativePath) {
     // The README's first command writes `out/cbox.exr` from a fresh clone, where `out` does not
     // exist yet: the output check must look at the working directory, and the write create
@@ -140,14 +210,6 @@ TEST_F(Cli, RenderCreatesMissingOutputDirectoriesOfARelativePath) {
         ASSERT_EQ(run.exit_code, 0) << target << ": " << run.output;
         EXPECT_TRUE(fs::is_regular_file(dir_ / target)) << target;
     }
-}
-
-/// The text of a file in the test's directory.
-std::string read_text(const fs::path& path) {
-    std::ifstream in(path);
-    std::stringstream text;
-    text << in.rdbuf();
-    return text.str();
 }
 
 TEST_F(Cli, DefaultsThenTheSceneThenTheCommandLine) {

@@ -13,6 +13,24 @@
 namespace gdmlt {
 namespace {
 
+TEST(FilmBuffer, SecondMomentsAreTheMeanSquaredXyzOfTheSamples) {
+    // Two samples in pixel (1, 0): pure red and pure green. XYZ by Mitsuba 3's srgb_to_xyz
+    // columns; the second moment per channel is the mean of the two squares; pixel (0, 0) saw
+    // none (zero), and without tracking there is no layer.
+    FilmBuffer buffer(2, 1);
+    EXPECT_TRUE(buffer.second_moment().pixels.empty());
+    buffer.track_second_moment();
+    buffer.add(1, 0, Rgb(1.f, 0.f, 0.f));
+    buffer.add(1, 0, Rgb(0.f, 1.f, 0.f));
+    const Image m2 = buffer.second_moment();
+    const float red[3] = {0.412453f, 0.212671f, 0.019334f};
+    const float green[3] = {0.357580f, 0.715160f, 0.119193f};
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_FLOAT_EQ(m2(1, 0, c), 0.5f * (red[c] * red[c] + green[c] * green[c]));
+        EXPECT_EQ(m2(0, 0, c), 0.f);
+    }
+}
+
 TEST(Wavefront, PathTracerGivesTheImageOfOnePathAtATime) {
     // render_path advances 256 paths a vertex at a time and traces their rays in packets of 16;
     // sample_path_radiance traces one path at a time with one-ray queries. Both run the same
@@ -32,10 +50,12 @@ TEST(Wavefront, PathTracerGivesTheImageOfOnePathAtATime) {
     settings.spp = kSpp;
     settings.seed = kSeed;
     settings.path.max_depth = 12;
+    settings.second_moment = true;  // Mitsuba's moment layers: the same paths, squared
     const RenderOutput wavefront = render_path(scene, settings);
 
     const Film& film = scene.camera().film();
     FilmBuffer one_at_a_time(film.crop_width, film.crop_height);
+    one_at_a_time.track_second_moment();
     PathCounters counters;
     for (int y = 0; y < film.crop_height; ++y)
         for (int x = 0; x < film.crop_width; ++x)
@@ -57,6 +77,15 @@ TEST(Wavefront, PathTracerGivesTheImageOfOnePathAtATime) {
     }
     EXPECT_GT(sum, 0.0);  // the scene is lit: a black image would compare equal too
     EXPECT_EQ(different, 0);
+    const Image expected_m2 = one_at_a_time.second_moment();
+    ASSERT_EQ(wavefront.second_moment.pixels.size(), expected_m2.pixels.size());
+    int different_m2 = 0;
+    for (std::size_t i = 0; i < expected_m2.pixels.size(); ++i) {
+        const float tolerance = 2e-4f * std::abs(expected_m2.pixels[i]) + 1e-7f;
+        if (std::abs(wavefront.second_moment.pixels[i] - expected_m2.pixels[i]) > tolerance)
+            ++different_m2;
+    }
+    EXPECT_EQ(different_m2, 0);
     // The wavefront counts what the one-path loop counts.
     EXPECT_EQ(wavefront.stats.counters.paths, counters.paths);
     EXPECT_EQ(wavefront.stats.counters.camera_rays, counters.camera_rays);
