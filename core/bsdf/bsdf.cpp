@@ -288,23 +288,22 @@ Bsdf Bsdf::null() {
 
 Bsdf Bsdf::normal_map(RgbTexture normals, Bsdf nested, bool flip_invalid_normals,
                       bool use_shadowing_function) {
-    Composite c;
-    c.kind = Composite::Kind::NormalMap;
-    c.first = std::move(nested);
-    c.normals = std::move(normals);
-    c.flip_invalid_normals = flip_invalid_normals;
-    c.use_shadowing_function = use_shadowing_function;
-    Bsdf b;
-    b.composite_ = std::make_shared<const Composite>(std::move(c));
-    return b;
+    return perturbed(false, std::move(normals), 1.f, std::move(nested), flip_invalid_normals,
+                     use_shadowing_function);
 }
 
 Bsdf Bsdf::bump_map(RgbTexture height, float scale, Bsdf nested, bool flip_invalid_normals,
                     bool use_shadowing_function) {
+    return perturbed(true, std::move(height), scale, std::move(nested), flip_invalid_normals,
+                     use_shadowing_function);
+}
+
+Bsdf Bsdf::perturbed(bool bump, RgbTexture texture, float scale, Bsdf nested,
+                     bool flip_invalid_normals, bool use_shadowing_function) {
     Composite c;
-    c.kind = Composite::Kind::BumpMap;
+    c.kind = bump ? Composite::Kind::BumpMap : Composite::Kind::NormalMap;
     c.first = std::move(nested);
-    c.normals = std::move(height);
+    c.normals = std::move(texture);
     c.bump_scale = scale;
     c.flip_invalid_normals = flip_invalid_normals;
     c.use_shadowing_function = use_shadowing_function;

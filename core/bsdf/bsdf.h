@@ -247,6 +247,9 @@ class Bsdf {
 
   private:
     struct Composite;
+    /// A normal map, or a bump map (`bump`, with its height texture and scale).
+    static Bsdf perturbed(bool bump, RgbTexture texture, float scale, Bsdf nested,
+                          bool flip_invalid_normals, bool use_shadowing_function);
     const BsdfModel& model_for(const Vec3f& wo, Vec3f* wo_flip, bool* flipped) const;
     BsdfSample sample_composite(const TexturePoint& at, const Vec3f& wo, float u_lobe,
                                 const Vec2f& u, TransportMode mode) const;

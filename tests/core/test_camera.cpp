@@ -73,6 +73,22 @@ TEST(CameraImportance, ConnectInvertsGenerateRay) {
     }
 }
 
+/// Per-pixel Monte Carlo integrals (sums of n estimates and of their squares) that should
+/// each be 1: every pixel within 5 standard errors, the window's total within 4, and every
+/// pixel's standard error below 3% (else there were too few samples to tell).
+void expect_one_per_pixel(const std::vector<double>& sum, const std::vector<double>& sum2, int n) {
+    double total = 0.0, total_var = 0.0;
+    for (std::size_t k = 0; k < sum.size(); ++k) {
+        const double mean = sum[k] / n;
+        const double var = (sum2[k] / n - mean * mean) / (n - 1);
+        total += mean;
+        total_var += var;
+        EXPECT_NEAR(mean, 1.0, 5.0 * std::sqrt(var)) << "pixel " << k;
+        ASSERT_LT(std::sqrt(var), 0.03) << "too few samples to tell";
+    }
+    EXPECT_NEAR(total, static_cast<double>(sum.size()), 4.0 * std::sqrt(total_var));
+}
+
 /// W = dA_film / dw at the camera point `origin` (the pinhole, or a thin lens's point), so its
 /// integral over the directions that land in a pixel is the pixel's area, 1. Directions
 /// uniform in a cone about the window centre's direction (Pcg32 seed 5, 8M of them: at least
@@ -114,17 +130,7 @@ void expect_importance_one_per_pixel(const Camera& camera, const Vec3f& origin, 
         // The cone must contain the whole window, or the integral would be short.
         ASSERT_GT(w.dot(axis), cos_max + 0.05f);
     }
-    double total = 0.0, total_var = 0.0;
-    for (int j = 0; j < pixels; ++j) {
-        const auto k = static_cast<std::size_t>(j);
-        const double mean = sum[k] / n;
-        const double var = (sum2[k] / n - mean * mean) / (n - 1);
-        total += mean;
-        total_var += var;
-        EXPECT_NEAR(mean, 1.0, 5.0 * std::sqrt(var)) << "pixel " << j;
-        ASSERT_LT(std::sqrt(var), 0.03) << "too few samples to tell";
-    }
-    EXPECT_NEAR(total, pixels, 4.0 * std::sqrt(total_var));
+    expect_one_per_pixel(sum, sum2, n);
 }
 
 TEST(CameraImportance, IntegratesToOnePerPixel) {
@@ -313,17 +319,7 @@ TEST(Orthographic, ImportanceIntegratesToOnePerPixelOverTheAreaAcrossTheRays) {
         sum2[static_cast<std::size_t>(y * film.crop_width + x)] += v * v;
     }
     ASSERT_EQ(outside_rectangle_edge, 0) << "the rectangle does not cover the window";
-    double total = 0.0, total_var = 0.0;
-    for (int j = 0; j < pixels; ++j) {
-        const auto k = static_cast<std::size_t>(j);
-        const double mean = sum[k] / samples;
-        const double var = (sum2[k] / samples - mean * mean) / (samples - 1);
-        total += mean;
-        total_var += var;
-        EXPECT_NEAR(mean, 1.0, 5.0 * std::sqrt(var)) << "pixel " << j;
-        ASSERT_LT(std::sqrt(var), 0.03) << "too few samples to tell";
-    }
-    EXPECT_NEAR(total, pixels, 4.0 * std::sqrt(total_var));
+    expect_one_per_pixel(sum, sum2, samples);
 }
 
 TEST(CameraRays, LanesAreGenerateRayBitForBit) {

@@ -245,44 +245,10 @@ TEST(ShiftMapping, DiffuseOnlySceneNeverUsesHalfVectorCopies) {
     }
 }
 
-TEST(GradientEstimator, MeanDifferenceBetweenTwoPixelsMatchesThePathTracedDifference) {
-    // Pixels (7, 8) and (8, 8) of a 16x16 Cornell box (the tall box's edge crosses there).
-    // The GDPT estimate of I(8,8) - I(7,8) over 2 x 40000 base samples (seed 77) and the path
-    // tracer's two pixel values (40000 samples each, seed 99) must agree within 4 combined
-    // standard errors.
-    const Scene scene = test::scene_from_xml(test::cornell_box_xml(16));
-    mlt::GdptSettings settings;
-    settings.path.max_depth = 6;
-    constexpr int kSamples = 40000;
-    ShiftCounters shifts;
-    const test::MeanEstimate g =
-        test::gdpt_pixel_difference(scene, settings, 7, 8, kSamples, 77, shifts);
-    const test::MeanEstimate a = test::path_traced_pixel(scene, settings.path, 7, 8, kSamples, 99);
-    const test::MeanEstimate b = test::path_traced_pixel(scene, settings.path, 8, 8, kSamples, 99);
-    const double pt_se =
-        std::sqrt(a.standard_error * a.standard_error + b.standard_error * b.standard_error);
-    const double combined = std::sqrt(g.standard_error * g.standard_error + pt_se * pt_se);
-    EXPECT_NEAR(g.mean, b.mean - a.mean, 4.0 * combined)
-        << "GDPT " << g.mean << " +- " << g.standard_error << ", PT " << b.mean - a.mean;
-    // The gradient estimate is much less noisy than the difference of two PT estimates.
-    EXPECT_LT(g.standard_error, 0.8 * pt_se);
-}
-
-TEST(GradientEstimator, ThroughAThinLensTheDifferenceMatchesThePathTracedDifference) {
-    // The Cornell box through a thin lens of radius 1 focused at 10, far behind the boxes (4.2
-    // away): the tall box's edge blurs over ~3 pixels. The offset keeps the base's lens point
-    // and moves the film position only. An offset through another lens point (the lens
-    // centre) estimates the sharp image's difference instead: measured 0.0388 +- 0.0005
-    // against the path tracer's 0.0055 +- 0.0008 (35 combined standard errors); as written
-    // 0.0059 +- 0.0003. Pixels (7, 8) and (8, 8), 2 x 40000 GDPT samples (seed 77) against
-    // 40000 path-traced samples per pixel (seed 99), within 4 combined standard errors.
-    std::string xml = test::cornell_box_xml(16);
-    const std::string pinhole = R"(<sensor type="perspective">)";
-    xml.replace(xml.find(pinhole), pinhole.size(),
-                R"(<sensor type="thinlens"><float name="aperture_radius" value="1"/>)"
-                R"(<float name="focus_distance" value="10"/>)");
-    const Scene scene = test::scene_from_xml(xml);
-    ASSERT_TRUE(scene.camera().needs_lens_sample());
+/// GDPT's estimate of I(8, 8) - I(7, 8) over 2 x 40000 base samples (seed 77) against the
+/// path tracer's two pixel values (40000 samples each, seed 99): within 4 combined standard
+/// errors, and the gradient estimate much less noisy than the difference of the two.
+void expect_gdpt_difference_matches_the_path_tracer(const Scene& scene) {
     mlt::GdptSettings settings;
     settings.path.max_depth = 6;
     constexpr int kSamples = 40000;
@@ -300,6 +266,28 @@ TEST(GradientEstimator, ThroughAThinLensTheDifferenceMatchesThePathTracedDiffere
         << "GDPT " << g.mean << " +- " << g.standard_error << ", PT " << b.mean - a.mean << " +- "
         << pt_se;
     EXPECT_LT(g.standard_error, 0.8 * pt_se);
+}
+
+TEST(GradientEstimator, MeanDifferenceBetweenTwoPixelsMatchesThePathTracedDifference) {
+    // Pixels (7, 8) and (8, 8) of a 16x16 Cornell box (the tall box's edge crosses there).
+    expect_gdpt_difference_matches_the_path_tracer(test::scene_from_xml(test::cornell_box_xml(16)));
+}
+
+TEST(GradientEstimator, ThroughAThinLensTheDifferenceMatchesThePathTracedDifference) {
+    // The Cornell box through a thin lens of radius 1 focused at 10, far behind the boxes (4.2
+    // away): the tall box's edge blurs over ~3 pixels. The offset keeps the base's lens point
+    // and moves the film position only. An offset through another lens point (the lens
+    // centre) estimates the sharp image's difference instead: measured 0.0388 +- 0.0005
+    // against the path tracer's 0.0055 +- 0.0008 (35 combined standard errors); as written
+    // 0.0059 +- 0.0003.
+    std::string xml = test::cornell_box_xml(16);
+    const std::string pinhole = R"(<sensor type="perspective">)";
+    xml.replace(xml.find(pinhole), pinhole.size(),
+                R"(<sensor type="thinlens"><float name="aperture_radius" value="1"/>)"
+                R"(<float name="focus_distance" value="10"/>)");
+    const Scene scene = test::scene_from_xml(xml);
+    ASSERT_TRUE(scene.camera().needs_lens_sample());
+    expect_gdpt_difference_matches_the_path_tracer(scene);
 }
 
 TEST(GradientEstimator, DifferencesAcrossNonUnitOffsetsMatchThePathTracedDifference) {
