@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "manifold/surface_point.h"
 
+#include <array>
 #include <cmath>
 
 #include "core/geometry/triangle_tangent.h"
@@ -29,15 +30,47 @@ std::optional<Vec2d> param_offset(const Vec3d& dp_du, const Vec3d& dp_dv, const 
     return Vec2d((c * r0 - b * r1) / det, (a * r1 - b * r0) / det);
 }
 
-std::optional<SurfacePoint> mesh_point(const TriangleMesh& mesh, std::uint32_t triangle,
-                                       const Vec2d& b) {
-    if (triangle >= mesh.triangle_count()) return std::nullopt;
-    const std::uint32_t i0 = mesh.indices[3 * triangle];
-    const std::uint32_t i1 = mesh.indices[3 * triangle + 1];
-    const std::uint32_t i2 = mesh.indices[3 * triangle + 2];
-    const Vec3d p0 = to_double(mesh.positions[i0]);
-    const Vec3d p1 = to_double(mesh.positions[i1]);
-    const Vec3d p2 = to_double(mesh.positions[i2]);
+/// A mesh triangle's corners in world space, in double: a stored mesh's as they are, an
+/// instance's mapped by its world_from_object (normals by the inverse transpose and not
+/// normalised, so that the interpolated normal is the image of the object's, as
+/// Shape::interaction computes it).
+struct TriangleCorners {
+    std::array<Vec3d, 3> p;
+    std::array<Vec3d, 3> n;   // valid when has_normals
+    std::array<Vec2d, 3> uv;  // valid when has_uvs
+    bool has_normals = false, has_uvs = false;
+    double normal_sign = 1.0;   // flip_normals
+    double winding_sign = 1.0;  // the geometric normal's sign on p1-p0 x p2-p0: flip_normals,
+                                // and a mirroring instance's reversed winding
+};
+
+std::optional<TriangleCorners> triangle_corners(const Shape& shape, std::uint32_t triangle) {
+    const TriangleMesh* mesh = shape.object_mesh();
+    if (!mesh || triangle >= mesh->triangle_count()) return std::nullopt;
+    const auto* instance = std::get_if<MeshInstance>(&shape.geometry());
+    TriangleCorners c;
+    c.has_normals = !mesh->normals.empty();
+    c.has_uvs = !mesh->uvs.empty();
+    c.normal_sign = mesh->flip_normals ? -1.0 : 1.0;
+    c.winding_sign = instance && instance->mirrored ? -c.normal_sign : c.normal_sign;
+    for (std::size_t k = 0; k < 3; ++k) {
+        const std::uint32_t i = mesh->indices[3 * triangle + k];
+        c.p[k] = to_double(mesh->positions[i]);
+        if (c.has_normals) c.n[k] = to_double(mesh->normals[i]);
+        if (c.has_uvs) c.uv[k] = mesh->uvs[i].cast<double>();
+        if (instance) {
+            c.p[k] =
+                instance->linear.cast<double>() * c.p[k] + instance->translation.cast<double>();
+            if (c.has_normals) c.n[k] = instance->normal_linear.cast<double>() * c.n[k];
+        }
+    }
+    return c;
+}
+
+std::optional<SurfacePoint> mesh_point(const Shape& shape, std::uint32_t triangle, const Vec2d& b) {
+    const std::optional<TriangleCorners> corners = triangle_corners(shape, triangle);
+    if (!corners) return std::nullopt;
+    const Vec3d &p0 = corners->p[0], &p1 = corners->p[1], &p2 = corners->p[2];
     const double b0 = 1.0 - b.x() - b.y();
 
     SurfacePoint sp;
@@ -49,13 +82,11 @@ std::optional<SurfacePoint> mesh_point(const TriangleMesh& mesh, std::uint32_t t
     const Vec3d cross = sp.dp_du.cross(sp.dp_dv);
     const double cross_norm = cross.norm();
     if (!(cross_norm > 0.0) || !std::isfinite(cross_norm)) return std::nullopt;
-    const double sign = mesh.flip_normals ? -1.0 : 1.0;
-    sp.n_geometric = sign * cross / cross_norm;
+    sp.n_geometric = corners->winding_sign * cross / cross_norm;
     sp.n_shading = sp.n_geometric;
-    if (!mesh.normals.empty()) {
-        const Vec3d n0 = to_double(mesh.normals[i0]);
-        const Vec3d n1 = to_double(mesh.normals[i1]);
-        const Vec3d n2 = to_double(mesh.normals[i2]);
+    if (corners->has_normals) {
+        const double sign = corners->normal_sign;
+        const Vec3d &n0 = corners->n[0], &n1 = corners->n[1], &n2 = corners->n[2];
         const Vec3d n_interp = b0 * n0 + b.x() * n1 + b.y() * n2;
         const double length = n_interp.norm();
         if (length > 1e-20) {
@@ -67,12 +98,11 @@ std::optional<SurfacePoint> mesh_point(const TriangleMesh& mesh, std::uint32_t t
             sp.dn_dv = sign * (dN_dv - n * n.dot(dN_dv)) / length;
         }
     }
-    if (mesh.uvs.empty()) {
+    if (!corners->has_uvs) {
         sp.frame_reference = sp.dp_du;
     } else {
-        const Vec2d uv0 = mesh.uvs[i0].cast<double>(), uv1 = mesh.uvs[i1].cast<double>(),
-                    uv2 = mesh.uvs[i2].cast<double>();
-        sp.frame_reference = triangle_frame_tangent(p0, p1, p2, &uv0, &uv1, &uv2);
+        sp.frame_reference =
+            triangle_frame_tangent(p0, p1, p2, &corners->uv[0], &corners->uv[1], &corners->uv[2]);
     }
     sp.tangents[0] = sp.dp_du.normalized();
     sp.tangents[1] = sp.n_geometric.cross(sp.tangents[0]);
@@ -182,8 +212,8 @@ std::optional<SurfacePoint> surface_point_at(const Shape& shape, std::int32_t sh
         sp->shape = shape_index;
         return sp;
     }
-    if (const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry())) {
-        sp = mesh_point(*mesh, primitive, param);
+    if (shape.has_triangles()) {
+        sp = mesh_point(shape, primitive, param);
     } else {
         sp = sphere_point(std::get<Sphere>(shape.geometry()), sphere_direction_from_param(param));
         sp->primitive = primitive;
@@ -219,11 +249,10 @@ std::optional<SurfacePoint> surface_point_from(const Shape& shape, const Surface
 std::optional<SurfacePoint> refine_hit(const Shape& shape, std::int32_t shape_index,
                                        std::uint32_t primitive, const Vec3d& origin,
                                        const Vec3d& direction, double t_hint) {
-    if (const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry())) {
-        if (primitive >= mesh->triangle_count()) return std::nullopt;
-        const Vec3d p0 = to_double(mesh->positions[mesh->indices[3 * primitive]]);
-        const Vec3d p1 = to_double(mesh->positions[mesh->indices[3 * primitive + 1]]);
-        const Vec3d p2 = to_double(mesh->positions[mesh->indices[3 * primitive + 2]]);
+    if (shape.has_triangles()) {
+        const std::optional<TriangleCorners> corners = triangle_corners(shape, primitive);
+        if (!corners) return std::nullopt;
+        const Vec3d &p0 = corners->p[0], &p1 = corners->p[1], &p2 = corners->p[2];
         // Moeller-Trumbore in double.
         const Vec3d e1 = p1 - p0, e2 = p2 - p0;
         const Vec3d pvec = direction.cross(e2);
@@ -293,7 +322,7 @@ std::optional<SurfacePoint> refine_hit(const Shape& shape, std::int32_t shape_in
 std::optional<SurfacePoint> move_on_surface(const Shape& shape, const SurfacePoint& point,
                                             const Vec2d& offset) {
     const Vec3d e = offset.x() * point.tangents[0] + offset.y() * point.tangents[1];
-    if (std::holds_alternative<TriangleMesh>(shape.geometry())) {
+    if (shape.has_triangles()) {
         const std::optional<Vec2d> duv = param_offset(point.dp_du, point.dp_dv, e);
         if (!duv) return std::nullopt;
         return surface_point_at(shape, point.shape, point.primitive, point.surface_param + *duv);

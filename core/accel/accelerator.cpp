@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -21,6 +22,14 @@ struct Accelerator::Impl {
     // addresses never move, whatever happens to the shapes the accelerator was built from).
     std::vector<Sphere> spheres;
     std::vector<Cylinder> cylinders;
+    /// One scene per mesh that instances share (its single triangle geometry has id 0), traced
+    /// through RTC_GEOMETRY_TYPE_INSTANCE geometries whose ids are the instances' shape indices.
+    struct InstancedMesh {
+        RTCScene scene = nullptr;
+        Eigen::AlignedBox3f bounds;  // object space
+    };
+    std::map<const Shape*, InstancedMesh> instanced_meshes;
+    bool has_instances = false;
 };
 
 namespace {
@@ -185,6 +194,28 @@ void cylinder_occluded(const RTCOccludedFunctionNArguments* args) {
     }
 }
 
+/// A committed triangle geometry holding `mesh`'s vertices and indices.
+RTCGeometry new_triangle_geometry(RTCDevice device, const TriangleMesh& mesh) {
+    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* vertices = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                3 * sizeof(float), mesh.positions.size()));
+    for (std::size_t v = 0; v < mesh.positions.size(); ++v)
+        for (int k = 0; k < 3; ++k) vertices[3 * v + k] = mesh.positions[v][k];
+    auto* indices = static_cast<unsigned*>(
+        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                3 * sizeof(unsigned), mesh.triangle_count()));
+    for (std::size_t k = 0; k < mesh.indices.size(); ++k) indices[k] = mesh.indices[k];
+    return geometry;
+}
+
+/// An instance's hits name the instance (instID, its shape index), not the shared mesh inside
+/// it (geomID 0 of its own scene).
+std::int32_t shape_of_hit(unsigned geometry_id, unsigned instance_id) {
+    return static_cast<std::int32_t>(instance_id != RTC_INVALID_GEOMETRY_ID ? instance_id
+                                                                            : geometry_id);
+}
+
 }  // namespace
 
 Accelerator::Accelerator(const std::vector<Shape>& shapes) : impl_(std::make_unique<Impl>()) {
@@ -200,18 +231,40 @@ Accelerator::Accelerator(const std::vector<Shape>& shapes) : impl_(std::make_uni
         const Shape& shape = shapes[i];
         RTCGeometry geometry = nullptr;
         if (const auto* mesh = std::get_if<TriangleMesh>(&shape.geometry())) {
-            geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-            auto* vertices = static_cast<float*>(
-                rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                        3 * sizeof(float), mesh->positions.size()));
-            for (std::size_t v = 0; v < mesh->positions.size(); ++v) {
-                for (int k = 0; k < 3; ++k) vertices[3 * v + k] = mesh->positions[v][k];
-                bounds_.extend(mesh->positions[v]);
+            geometry = new_triangle_geometry(impl_->device, *mesh);
+            for (const Vec3f& p : mesh->positions) bounds_.extend(p);
+        } else if (const auto* instance = std::get_if<MeshInstance>(&shape.geometry())) {
+            // The shared mesh's scene, built once for all its instances.
+            Impl::InstancedMesh& object = impl_->instanced_meshes[instance->object.get()];
+            RTCScene& object_scene = object.scene;
+            if (!object_scene) {
+                object.bounds.setEmpty();
+                for (const Vec3f& p : instance->mesh().positions) object.bounds.extend(p);
+                object_scene = rtcNewScene(impl_->device);
+                rtcSetSceneBuildQuality(object_scene, RTC_BUILD_QUALITY_HIGH);
+                RTCGeometry triangles = new_triangle_geometry(impl_->device, instance->mesh());
+                rtcCommitGeometry(triangles);
+                rtcAttachGeometryByID(object_scene, triangles, 0);
+                rtcReleaseGeometry(triangles);
+                rtcCommitScene(object_scene);
+                throw_on_error(impl_->device, "instanced mesh setup");
             }
-            auto* indices = static_cast<unsigned*>(
-                rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                        3 * sizeof(unsigned), mesh->triangle_count()));
-            for (std::size_t k = 0; k < mesh->indices.size(); ++k) indices[k] = mesh->indices[k];
+            geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_INSTANCE);
+            rtcSetGeometryInstancedScene(geometry, object_scene);
+            // Embree's 3x4 column-major affine map: the linear part's columns, then the
+            // translation.
+            float world_from_object[12];
+            for (int column = 0; column < 3; ++column)
+                for (int row = 0; row < 3; ++row)
+                    world_from_object[3 * column + row] = instance->linear(row, column);
+            for (int row = 0; row < 3; ++row)
+                world_from_object[9 + row] = instance->translation[row];
+            rtcSetGeometryTransform(geometry, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR,
+                                    world_from_object);
+            for (int corner = 0; corner < 8; ++corner)
+                bounds_.extend(instance->to_world(
+                    object.bounds.corner(static_cast<Eigen::AlignedBox3f::CornerType>(corner))));
+            impl_->has_instances = true;
         } else if (const auto* cylinder = std::get_if<Cylinder>(&shape.geometry())) {
             const Cylinder& c = impl_->cylinders.emplace_back(*cylinder);
             geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_USER);
@@ -248,6 +301,7 @@ Accelerator::Accelerator(const std::vector<Shape>& shapes) : impl_(std::make_uni
 
 Accelerator::~Accelerator() {
     if (impl_->scene) rtcReleaseScene(impl_->scene);
+    for (const auto& [shape, object] : impl_->instanced_meshes) rtcReleaseScene(object.scene);
     if (impl_->device) rtcReleaseDevice(impl_->device);
 }
 
@@ -274,7 +328,7 @@ RayHit Accelerator::intersect(const Ray& ray) const {
     if (rayhit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return hit;
     hit.t = rayhit.ray.tfar;
     hit.barycentric = Vec2f(rayhit.hit.u, rayhit.hit.v);
-    hit.shape = static_cast<std::int32_t>(rayhit.hit.geomID);
+    hit.shape = shape_of_hit(rayhit.hit.geomID, rayhit.hit.instID[0]);
     hit.primitive = rayhit.hit.primID;
     return hit;
 }
@@ -344,6 +398,12 @@ void Accelerator::intersect_packet(const RayPacket& rays, HitPacket& hits, bool 
     // RTC_INVALID_GEOMETRY_ID is ~0u: -1 as a shape index, "no hit".
     static_assert(static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID) == -1);
     std::memcpy(hits.shape.data(), packet.hit.geomID, kBytes);
+    if (impl_->has_instances)
+        for (int i = 0; i < rays.count; ++i)
+            hits.shape[static_cast<std::size_t>(i)] =
+                packet.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID
+                    ? -1
+                    : shape_of_hit(packet.hit.geomID[i], packet.hit.instID[0][i]);
 }
 
 void Accelerator::occluded_packet(const RayPacket& rays,

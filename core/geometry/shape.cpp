@@ -137,6 +137,22 @@ Shape::Shape(TriangleMesh mesh, int bsdf, std::string id)
     triangle_areas_ = AliasTable(areas);
 }
 
+Shape::Shape(MeshInstance instance, int bsdf, std::string id)
+    : geometry_(std::move(instance)), bsdf_(bsdf), id_(std::move(id)) {
+    // The world area, for anyone who asks: |L e1 x L e2| = |det L| |L^-T (e1 x e2)|.
+    const auto& inst = std::get<MeshInstance>(geometry_);
+    const TriangleMesh& mesh = inst.mesh();
+    const float det = std::abs(inst.linear.determinant());
+    double total = 0.0;
+    for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+        const Vec3f& p0 = mesh.positions[mesh.indices[3 * t]];
+        const Vec3f& p1 = mesh.positions[mesh.indices[3 * t + 1]];
+        const Vec3f& p2 = mesh.positions[mesh.indices[3 * t + 2]];
+        total += 0.5 * det * (inst.normal_linear * (p1 - p0).cross(p2 - p0)).norm();
+    }
+    area_ = static_cast<float>(total);
+}
+
 Shape::Shape(Cylinder cylinder, int bsdf, std::string id)
     : geometry_(cylinder), bsdf_(bsdf), id_(std::move(id)) {
     area_ = 2.f * kPi * cylinder.radius * cylinder.length;
@@ -171,6 +187,32 @@ void fill_cylinder_interaction(const Cylinder& cylinder, const Vec3f& local,
     si.dn_dv = Vec3f::Zero();
 }
 
+/// Maps `si`, filled in `instance`'s object space, to world space. Points and tangents by the
+/// linear part, normals by its inverse transpose; the shading normal's derivatives are those of
+/// normalize(L^-T n(u, v)), i.e. (I - n n^T) L^-T dn / |L^-T n| for the unit object normal n
+/// (the interpolated normal is linear in the corners, so this is the same field a mesh
+/// flattened with transformed vertex normals has, before their per-vertex normalisation).
+/// The frame's reference tangent is the object's mapped, as a flattened mesh computes it.
+void to_world(const MeshInstance& instance, const Vec3f& object_frame_tangent,
+              SurfaceInteraction& si) {
+    const Mat3f& l = instance.linear;
+    const Mat3f& n_map = instance.normal_linear;
+    si.p = instance.to_world(si.p);
+    si.dp_du = l * si.dp_du;
+    si.dp_dv = l * si.dp_dv;
+    si.n_geometric = (n_map * si.n_geometric).normalized();
+    const Vec3f n_scaled = n_map * si.shading.n;
+    const float length = n_scaled.norm();
+    const Vec3f n = n_scaled / length;
+    const auto project = [&](const Vec3f& dn_object) -> Vec3f {
+        const Vec3f d = n_map * dn_object;
+        return (d - n * n.dot(d)) / length;
+    };
+    si.dn_du = project(si.dn_du);
+    si.dn_dv = project(si.dn_dv);
+    si.shading = Frame::from_normal_and_tangent(n, l * object_frame_tangent);
+}
+
 }  // namespace
 
 SurfaceInteraction Shape::interaction(std::uint32_t primitive, const Vec2f& barycentric,
@@ -181,6 +223,10 @@ SurfaceInteraction Shape::interaction(std::uint32_t primitive, const Vec2f& bary
     if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
         fill_mesh_interaction(*mesh, face_normals_[primitive], frame_tangents_[primitive],
                               primitive, barycentric, si);
+    } else if (const auto* instance = std::get_if<MeshInstance>(&geometry_)) {
+        // Barycentrics and t are the same in object and world space (an affine map).
+        si = instance->object->interaction_at(primitive, barycentric);
+        to_world(*instance, instance->object->triangle_frame_tangent(primitive), si);
     } else if (const auto* cylinder = std::get_if<Cylinder>(&geometry_)) {
         // Back onto the unit cylinder in object space, as Mitsuba 3 reprojects its hits.
         Vec3f local = cylinder->to_object(ray_origin + t * ray_direction);
@@ -211,6 +257,9 @@ SurfaceInteraction Shape::interaction_at(std::uint32_t primitive, const Vec2f& p
     if (const auto* mesh = std::get_if<TriangleMesh>(&geometry_)) {
         fill_mesh_interaction(*mesh, face_normals_[primitive], frame_tangents_[primitive],
                               primitive, param, si);
+    } else if (const auto* instance = std::get_if<MeshInstance>(&geometry_)) {
+        si = instance->object->interaction_at(primitive, param);
+        to_world(*instance, instance->object->triangle_frame_tangent(primitive), si);
     } else if (const auto* cylinder = std::get_if<Cylinder>(&geometry_)) {
         const float phi = 2.f * kPi * param.x();
         fill_cylinder_interaction(*cylinder, Vec3f(std::cos(phi), std::sin(phi), param.y()), si);

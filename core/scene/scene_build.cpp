@@ -275,6 +275,12 @@ struct Builder {
     SamplerSettings sampler;
     SceneFeatures features;
     std::map<std::string, std::size_t> counts;
+    /// Shapegroup meshes by object index, built once and shared by the instances that place them.
+    struct GroupMesh {
+        std::shared_ptr<const Shape> shape;
+        Eigen::AlignedBox3d box;  // of its vertices, in the group's space
+    };
+    std::map<int, GroupMesh> group_meshes;
     /// Loaded images by (file, raw), shared by every texture that names them.
     std::map<std::pair<std::string, bool>, std::shared_ptr<const BitmapData>> bitmaps;
     /// The mesh_attribute textures, bound to the shapes once they are built.
@@ -491,7 +497,8 @@ struct Builder {
             use.binding->by_shape.assign(shapes.size(), nullptr);
             bool found = false;
             for (std::size_t i = 0; i < shapes.size(); ++i) {
-                const auto* mesh = std::get_if<TriangleMesh>(&shapes[i].geometry());
+                // An instance's attributes are its shared mesh's (the same corners).
+                const TriangleMesh* mesh = shapes[i].object_mesh();
                 if (!mesh) continue;
                 use.binding->by_shape[i] = mesh->attribute(use.name);
                 found = found || use.binding->by_shape[i] != nullptr;
@@ -1159,9 +1166,10 @@ struct Builder {
     }
 
     /// Mitsuba 3's `instance` of a `shapegroup`: the group's shapes, each with the instance's
-    /// to_world applied after its own. They are built as shapes of their own (flattened), so
-    /// every integrator, shift and sampler sees ordinary shapes; memory grows with the
-    /// instance count, unlike Embree's instances.
+    /// to_world applied after its own. A group's meshes are built once, in the group's space,
+    /// and every instance places them as MeshInstance shapes that Embree traces as instances
+    /// (memory does not grow with triangles times instances); its spheres and cylinders, a few
+    /// numbers each, are built as shapes of their own with the composed transform.
     void build_instance(const ObjectDesc& obj) {
         Properties props(obj, diagnostics);
         const Transform world_from_instance = props.get_transform("to_world");
@@ -1186,15 +1194,50 @@ struct Builder {
                 if (object(grandchild.object).tag == "emitter")
                     throw InputError(grandchild.loc,
                                      "a shape in a shapegroup cannot emit (as in Mitsuba 3)");
-            build_shape(c, &world_from_instance);
+            if (c.type == "sphere" || c.type == "cylinder")
+                build_shape(c, &world_from_instance);
+            else
+                place_group_mesh(child.object, world_from_instance, props.loc_of("to_world"));
         }
         ++counts["instances"];
         features.shape_kinds.insert("instance");
     }
 
-    /// One shape; `outer` (an instance's to_world) applies after the shape's own to_world.
-    void build_shape(const ObjectDesc& obj, const Transform* outer = nullptr) {
+    /// A shapegroup's mesh (object `object_index`), built once in the group's space, placed in
+    /// the scene by an instance's to_world.
+    void place_group_mesh(int object_index, const Transform& world_from_instance,
+                          const FileLoc& loc) {
+        GroupMesh& group_mesh = group_meshes[object_index];
+        if (!group_mesh.shape) {
+            const ObjectDesc* emitter_desc = nullptr;  // refused before this
+            std::optional<Shape> built = make_shape(object(object_index), nullptr, emitter_desc);
+            if (!built || !built->is_mesh()) return;  // an unknown shape under --lenient
+            group_mesh.shape = std::make_shared<const Shape>(std::move(*built));
+            for (const Vec3f& p : std::get<TriangleMesh>(group_mesh.shape->geometry()).positions)
+                group_mesh.box.extend(p.cast<double>());
+        }
+        const std::shared_ptr<const Shape>& object_mesh = group_mesh.shape;
+        const Eigen::Matrix3d linear = world_from_instance.matrix.topLeftCorner<3, 3>();
+        if (!(std::abs(linear.determinant()) > 0.0))
+            throw InputError(loc, "an instance's to_world must be invertible");
+        MeshInstance instance(object_mesh, linear.cast<float>(),
+                              world_from_instance.matrix.topRightCorner<3, 1>().cast<float>());
+        // Its world box's corners must lie where a flattened copy's vertices may.
+        for (int corner = 0; corner < 8; ++corner)
+            check_world_point(world_from_instance.apply_point(Vec3d(group_mesh.box.corner(
+                                  static_cast<Eigen::AlignedBox3d::CornerType>(corner)))),
+                              loc, "a vertex of an instance of " + describe(object(object_index)));
+        counts["instanced_triangles"] += instance.mesh().triangle_count();
+        shapes.emplace_back(std::move(instance), object_mesh->bsdf(), object_mesh->id());
+    }
+
+    /// `obj` built as a Shape (not added to the scene's; null for an unknown shape under
+    /// --lenient), with `outer` applied after its own to_world; its area emitter's element, if
+    /// it has one, in `emitter_desc`.
+    std::optional<Shape> make_shape(const ObjectDesc& obj, const Transform* outer,
+                                    const ObjectDesc*& emitter_desc) {
         Properties props(obj, diagnostics);
+
         const Transform world_from_object =
             outer ? Transform(Mat4d(outer->matrix * props.get_transform("to_world").matrix))
                   : props.get_transform("to_world");
@@ -1202,7 +1245,6 @@ struct Builder {
         std::optional<Shape> shape;
 
         int bsdf = -1;
-        const ObjectDesc* emitter_desc = nullptr;
         for (const ChildRef& child : obj.children) {
             const ObjectDesc& c = object(child.object);
             if (c.tag == "bsdf") {
@@ -1283,7 +1325,7 @@ struct Builder {
                     obj.loc, "unknown shape '" + obj.type +
                                  "' (supported: obj, ply, off, serialized, rectangle, cube, disk, "
                                  "sphere, cylinder, shapegroup and instance)");
-                return;
+                return std::nullopt;
             }
             mesh.flip_normals = flip_normals;
             transform_mesh(mesh, world_from_object);
@@ -1295,7 +1337,15 @@ struct Builder {
         }
         props.check_all_used();
         features.shape_kinds.insert(obj.type);
+        return shape;
+    }
 
+    /// One shape, added to the scene's; `outer` (an instance's to_world) applies after the
+    /// shape's own to_world.
+    void build_shape(const ObjectDesc& obj, const Transform* outer = nullptr) {
+        const ObjectDesc* emitter_desc = nullptr;
+        std::optional<Shape> shape = make_shape(obj, outer, emitter_desc);
+        if (!shape) return;
         const int shape_index = static_cast<int>(shapes.size());
         if (emitter_desc) {
             if (!(shape->surface_area() > 0.f))
@@ -1490,8 +1540,9 @@ struct Builder {
 }  // namespace
 
 Scene build_scene(const SceneDesc& desc, const BuildOptions& options) {
-    Builder b{desc, Diagnostics(options.lenient), {}, {}, {}, {}, {}, {}, false, {}, {}, {}, {}, {},
-              {}};
+    Builder b{
+        desc, Diagnostics(options.lenient), {}, {}, {}, {}, {}, {}, false, {}, {}, {}, {}, {}, {},
+        {}};
     b.build_root();
     b.bind_mesh_attributes();
     b.compute_features();

@@ -554,47 +554,96 @@ TEST(SceneBuild, AMeshAttributeTextureReadsThePlyValuesWhereTheRayLands) {
 }
 
 TEST(SceneBuild, AnInstanceIsItsShapegroupsShapesUnderItsTransform) {
-    // Two instances of a group (a sphere and a rectangle, each with its own to_world) against
-    // the same four shapes written out with both transforms: the same hits, ray by ray (400
-    // rays from a grid towards the origin), and the instances counted.
+    // Instances of two groups against the same shapes written out with both transforms: the
+    // same hits, ray by ray (400 rays from a grid towards a point behind the shapes). Group 1 (a
+    // sphere and a rectangle, each with its own to_world) under two similarities; group 2 (a
+    // bent quad with smooth vertex normals) under a uniform mirror and under an uneven
+    // mirroring stretch. The group's meshes are stored once and shared (MeshInstance), the
+    // spheres are copied. Shading normals are compared where the scale is uniform: elsewhere a
+    // written-out mesh normalises each transformed vertex normal before interpolating, and an
+    // instance maps the interpolated object normal (Shape::interaction).
+    const auto dir = std::filesystem::temp_directory_path() / "gdmlt_test_instance";
+    std::filesystem::create_directories(dir);
+    const auto bent = dir / "bent.obj";
+    std::ofstream(bent) << "v -1 -1 0\nv 1 -1 0.5\nv 1 1 0\nv -1 1 0.4\n"
+                           "vn 0.2 0 1\nvn 0 0.3 1\nvn -0.3 0.1 1\nvn 0 -0.2 1\n"
+                           "f 1//1 2//2 3//3\nf 1//1 3//3 4//4\n";
+    const std::string bent_shape = R"(<shape type="obj"><string name="filename" value=")" +
+                                   bent.string() + R"("/><transform name="to_world">)";
     const std::string sphere_local = R"(<scale value="0.5"/><translate value="-1, 0, 0"/>)";
     const std::string rectangle_local = R"(<scale value="1.2"/><rotate y="1" angle="-80"/>)";
-    const std::string outer[2] = {R"(<rotate y="1" angle="45"/><translate z="2"/>)",
-                                  R"(<rotate x="1" angle="-25"/><scale value="1.5"/>)"};
+    const std::string bent_local = R"(<rotate x="1" angle="20"/>)";
+    struct Placement {
+        std::string group, to_world;
+        bool uniform_scale;
+    };
+    const Placement placements[] = {
+        {"group", R"(<rotate y="1" angle="45"/><translate z="2"/>)", true},
+        {"group", R"(<rotate x="1" angle="-25"/><scale value="1.5"/>)", true},
+        {"bent", R"(<scale x="-1.5" y="1.5" z="1.5"/><translate value="1, 1, -1"/>)", true},
+        {"bent", R"(<scale x="-0.8" y="1.3" z="1"/><translate value="-1, -1, 1"/>)", false}};
     std::string grouped = R"(<shape type="shapegroup" id="group">
         <shape type="sphere"><transform name="to_world">)" +
                           sphere_local + R"(</transform></shape>
         <shape type="rectangle"><transform name="to_world">)" +
-                          rectangle_local + R"(</transform></shape></shape>)";
+                          rectangle_local + R"(</transform></shape></shape>
+        <shape type="shapegroup" id="bent">)" +
+                          bent_shape + bent_local + "</transform></shape></shape>";
     std::string flat;
-    for (const std::string& o : outer) {
-        grouped += R"(<shape type="instance"><ref id="group"/><transform name="to_world">)" + o +
-                   "</transform></shape>";
-        flat += R"(<shape type="sphere"><transform name="to_world">)" + sphere_local + o +
-                "</transform></shape>";
-        flat += R"(<shape type="rectangle"><transform name="to_world">)" + rectangle_local + o +
-                "</transform></shape>";
+    std::vector<bool> uniform_scale(1, true);  // the light
+    for (const Placement& place : placements) {
+        grouped += R"(<shape type="instance"><ref id=")" + place.group +
+                   R"("/><transform name="to_world">)" + place.to_world + "</transform></shape>";
+        if (place.group == "group") {
+            flat += R"(<shape type="sphere"><transform name="to_world">)" + sphere_local +
+                    place.to_world + "</transform></shape>";
+            flat += R"(<shape type="rectangle"><transform name="to_world">)" + rectangle_local +
+                    place.to_world + "</transform></shape>";
+            uniform_scale.insert(uniform_scale.end(), 2, place.uniform_scale);
+        } else {
+            flat += bent_shape + bent_local + place.to_world + "</transform></shape>";
+            uniform_scale.push_back(place.uniform_scale);
+        }
     }
     const Scene a = test::scene_from_xml(kLight + grouped);
     const Scene b = test::scene_from_xml(kLight + flat);
-    EXPECT_EQ(a.counts().at("instances"), 2u);
+    std::filesystem::remove_all(dir);
+    EXPECT_EQ(a.counts().at("instances"), 4u);
     ASSERT_EQ(a.shapes().size(), b.shapes().size());
-    int hits = 0;
+    // The meshes are shared: each group mesh is one object, whatever the instance count.
+    const auto& rectangle_1 = std::get<MeshInstance>(a.shapes()[2].geometry());
+    const auto& rectangle_2 = std::get<MeshInstance>(a.shapes()[4].geometry());
+    EXPECT_EQ(rectangle_1.object.get(), rectangle_2.object.get());
+    EXPECT_TRUE(std::holds_alternative<Sphere>(a.shapes()[1].geometry()));
+    EXPECT_EQ(std::get<MeshInstance>(a.shapes()[5].geometry()).object.get(),
+              std::get<MeshInstance>(a.shapes()[6].geometry()).object.get());
+    for (std::size_t i = 0; i < a.shapes().size(); ++i)
+        EXPECT_NEAR(a.shapes()[i].surface_area(), b.shapes()[i].surface_area(),
+                    1e-5f * b.shapes()[i].surface_area())
+            << i;
+    std::vector<int> hits_by_shape(a.shapes().size(), 0);
+    const Vec3f target(0.13f, -0.21f, -3.f);
     for (int i = 0; i < 20; ++i)
         for (int j = 0; j < 20; ++j) {
             Ray ray;
             ray.origin = Vec3f(-4.f + 0.4f * static_cast<float>(i),
                                -4.f + 0.4f * static_cast<float>(j), 8.f);
-            ray.direction = (Vec3f(0.f, 0.f, 0.f) - ray.origin).normalized();
+            ray.direction = (target - ray.origin).normalized();
             const SurfaceInteraction ha = a.intersect(ray), hb = b.intersect(ray);
             ASSERT_EQ(ha.valid(), hb.valid()) << i << " " << j;
             if (!ha.valid()) continue;
-            ++hits;
-            EXPECT_EQ(ha.shape, hb.shape);
+            ASSERT_EQ(ha.shape, hb.shape) << i << " " << j;
+            ++hits_by_shape[static_cast<std::size_t>(ha.shape)];
             EXPECT_NEAR((ha.p - hb.p).norm(), 0.f, 1e-5f);
-            EXPECT_NEAR((ha.shading.n - hb.shading.n).norm(), 0.f, 1e-5f);
+            EXPECT_NEAR((ha.n_geometric - hb.n_geometric).norm(), 0.f, 1e-5f);
+            if (uniform_scale[static_cast<std::size_t>(ha.shape)])
+                EXPECT_NEAR((ha.shading.n - hb.shading.n).norm(), 0.f, 1e-5f);
+            else
+                EXPECT_GT(ha.shading.n.dot(hb.shading.n), 0.99f);
         }
-    EXPECT_GT(hits, 40);
+    // Every instanced shape is seen by some of the rays.
+    for (std::size_t shape = 1; shape < hits_by_shape.size(); ++shape)
+        EXPECT_GE(hits_by_shape[shape], 5) << shape;
     // What an instance may not hold.
     EXPECT_NE(
         build_error(kLight + R"(<shape type="instance"/>)").find("needs a <ref> to a shapegroup"),

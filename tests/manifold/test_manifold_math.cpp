@@ -83,7 +83,16 @@ std::string write_icosphere_obj(int subdivisions) {
     return path;
 }
 
-enum class ChainKind { MirrorSphereInside, GlassSphere, MirrorMeshInside, MirrorCylinderInside };
+enum class ChainKind {
+    MirrorSphereInside,
+    GlassSphere,
+    MirrorMeshInside,
+    MirrorCylinderInside,
+    MirrorInstanceInside
+};
+constexpr ChainKind kAllKinds[] = {ChainKind::MirrorSphereInside, ChainKind::GlassSphere,
+                                   ChainKind::MirrorMeshInside, ChainKind::MirrorCylinderInside,
+                                   ChainKind::MirrorInstanceInside};
 
 const char* name(ChainKind kind) {
     switch (kind) {
@@ -95,6 +104,8 @@ const char* name(ChainKind kind) {
             return "smooth-normal mirror mesh (inside)";
         case ChainKind::MirrorCylinderInside:
             return "mirror cylinder (inside)";
+        case ChainKind::MirrorInstanceInside:
+            return "smooth-normal mirror mesh instance, mirrored and stretched (inside)";
     }
     return "?";
 }
@@ -121,6 +132,21 @@ Scene make_scene(ChainKind kind) {
                                      R"("/><boolean name="flip_normals" value="true"/>
                 <bsdf type="conductor"/></shape>)");
             std::filesystem::remove(path);
+            return scene;
+        }
+        case ChainKind::MirrorInstanceInside: {
+            // The same mesh in a shapegroup, placed by an instance whose to_world mirrors x and
+            // stretches unevenly: the walk reads the shared object-space mesh through the map.
+            const std::string path = write_icosphere_obj(2);
+            Scene scene = test::scene_from_xml(
+                R"(<shape type="shapegroup" id="g"><shape type="obj"><string name="filename" value=")" +
+                path + R"("/><boolean name="flip_normals" value="true"/>
+                <bsdf type="conductor"/></shape></shape>
+                <shape type="instance"><ref id="g"/><transform name="to_world">
+                <scale x="-1.3" y="1.1" z="1.2"/><rotate x="1" y="1" angle="30"/>
+                <translate value="0.1, 0, -0.2"/></transform></shape>)");
+            std::filesystem::remove(path);
+            EXPECT_TRUE(scene.shapes().at(0).is_instance());
             return scene;
         }
     }
@@ -317,8 +343,7 @@ void expect_blocks_match_finite_differences(const Scene& scene, const SpecularCh
 
 TEST(Constraints, TracedChainsSatisfyTheirConstraints) {
     std::mt19937 rng(11);
-    for (const ChainKind kind : {ChainKind::MirrorSphereInside, ChainKind::GlassSphere,
-                                 ChainKind::MirrorMeshInside, ChainKind::MirrorCylinderInside}) {
+    for (const ChainKind kind : kAllKinds) {
         const Scene scene = make_scene(kind);
         for (int k = 1; k <= 6; ++k) {
             const auto chain = random_chain(scene, kind, k, rng);
@@ -366,10 +391,55 @@ TEST(Constraints, ShadingFrameFollowsTheTextureAndMatchesTheRenderersFrame) {
     }
 }
 
+TEST(Constraints, AnInstancesSurfacePointIsTheRenderersInteraction) {
+    // The same smooth-normal, textured triangle shared by an instance whose to_world mirrors
+    // and stretches unevenly: the walk's surface point (world corners in double) and the
+    // renderer's interaction (object space mapped to world) must describe one surface: the
+    // same point, normals, shading frame and normal derivatives, at 20 points (seed 8).
+    TriangleMesh mesh;
+    mesh.positions = {{0, 0, 0}, {2, 0, 0.3f}, {0, 1, 0.1f}};
+    mesh.indices = {0, 1, 2};
+    mesh.uvs = {{0, 0}, {0, 1}, {1, 0}};
+    mesh.normals = {Vec3f(0.1f, 0, 1).normalized(), Vec3f(0, 0.4f, 1).normalized(),
+                    Vec3f(-0.3f, 0.1f, 1).normalized()};
+    Mat3f linear;
+    linear << -1.3f, 0.2f, 0.f, 0.1f, 0.7f, 0.3f, 0.f, -0.2f, 1.6f;
+    const Shape shape(MeshInstance(std::make_shared<const Shape>(std::move(mesh), 0, "object"),
+                                   linear, Vec3f(0.5f, -1.f, 2.f)),
+                      0, "instance");
+    ASSERT_LT(linear.determinant(), 0.f);
+    std::mt19937 rng(8);
+    std::uniform_real_distribution<float> uniform(0.05f, 0.45f);
+    for (int i = 0; i < 20; ++i) {
+        const Vec2f b(uniform(rng), uniform(rng));
+        SurfaceInteraction si = shape.interaction_at(0, b);
+        si.shape = 0;
+        const std::optional<SurfacePoint> sp = surface_point_from(shape, si);
+        ASSERT_TRUE(sp.has_value());
+        EXPECT_LT((sp->p - si.p.cast<double>()).norm(), 1e-5) << i;
+        EXPECT_LT((sp->n_geometric - si.n_geometric.cast<double>()).norm(), 1e-5) << i;
+        EXPECT_LT((sp->n_shading - si.shading.n.cast<double>()).norm(), 1e-5) << i;
+        EXPECT_LT((sp->dn_du - si.dn_du.cast<double>()).norm(), 1e-5) << i;
+        EXPECT_LT((sp->dn_dv - si.dn_dv.cast<double>()).norm(), 1e-5) << i;
+        const std::optional<ConstraintFrame> frame = constraint_frame(*sp);
+        ASSERT_TRUE(frame.has_value());
+        EXPECT_LT((frame->s - si.shading.s.cast<double>()).norm(), 1e-5) << i;
+        EXPECT_LT((frame->t - si.shading.t.cast<double>()).norm(), 1e-5) << i;
+        // The interaction's normal derivatives are those of its own normal field.
+        constexpr float h = 1e-3f;
+        for (int axis = 0; axis < 2; ++axis) {
+            const Vec2f step = h * Vec2f::Unit(axis);
+            const Vec3f fd = (shape.interaction_at(0, b + step).shading.n -
+                              shape.interaction_at(0, b - step).shading.n) /
+                             (2.f * h);
+            EXPECT_LT((fd - (axis == 0 ? si.dn_du : si.dn_dv)).norm(), 1e-3f) << i;
+        }
+    }
+}
+
 TEST(Constraints, DerivativeBlocksMatchCentralFiniteDifferences) {
     std::mt19937 rng(12);
-    for (const ChainKind kind : {ChainKind::MirrorSphereInside, ChainKind::GlassSphere,
-                                 ChainKind::MirrorMeshInside, ChainKind::MirrorCylinderInside}) {
+    for (const ChainKind kind : kAllKinds) {
         const Scene scene = make_scene(kind);
         for (int k = 1; k <= 6; ++k) {
             for (int trial = 0; trial < 4; ++trial) {
@@ -426,8 +496,7 @@ std::optional<double> finite_difference_log_solid_angle_per_area(const Scene& sc
 
 TEST(GeneralizedGeometry, SolidAnglePerAreaMatchesFiniteDifferencesOfTracedChains) {
     std::mt19937 rng(13);
-    for (const ChainKind kind : {ChainKind::MirrorSphereInside, ChainKind::GlassSphere,
-                                 ChainKind::MirrorMeshInside, ChainKind::MirrorCylinderInside}) {
+    for (const ChainKind kind : kAllKinds) {
         const Scene scene = make_scene(kind);
         for (int k = 0; k <= 6; ++k) {
             for (int trial = 0; trial < 3; ++trial) {
@@ -501,7 +570,7 @@ std::optional<double> finite_difference_log_half_vector_jacobian(const Scene& sc
     for (const ChainVertex& v : chain.vertices) {
         const Shape& shape = scene.shapes()[static_cast<std::size_t>(v.geometry.shape)];
         const Vec2d& b = v.geometry.surface_param;
-        if (shape.is_mesh() && std::min({b.x(), b.y(), 1.0 - b.x() - b.y()}) < 1e-3)
+        if (shape.has_triangles() && std::min({b.x(), b.y(), 1.0 - b.x() - b.y()}) < 1e-3)
             return std::nullopt;
     }
     const auto m = static_cast<Eigen::Index>(2 * glossy.size());
@@ -541,8 +610,7 @@ std::optional<double> finite_difference_log_half_vector_jacobian(const Scene& sc
 TEST(GeneralizedGeometry, HalfVectorJacobianMatchesFiniteDifferences) {
     std::mt19937 rng(15);
     int checked = 0;
-    for (const ChainKind kind : {ChainKind::MirrorSphereInside, ChainKind::GlassSphere,
-                                 ChainKind::MirrorMeshInside, ChainKind::MirrorCylinderInside}) {
+    for (const ChainKind kind : kAllKinds) {
         const Scene scene = make_scene(kind);
         for (int k = 1; k <= 5; ++k) {
             for (int trial = 0; trial < 3; ++trial) {
