@@ -30,6 +30,7 @@
 #include "core/render/render_ptracer.h"
 #include "core/scene/scene.h"
 #include "core/scene/scene_desc.h"
+#include "core/scene/spectrum_rgb.h"
 #include "mlt/gdmlt.h"
 #include "mlt/gdpt.h"
 #include "mlt/pssmlt.h"
@@ -358,7 +359,7 @@ IntegratorResult run_path(const Scene& scene, const RenderOptions& options, Prog
         // Layers `<name>.X/Y/Z` (the mean) and `m2_<name>.X/Y/Z`, Mitsuba 3's channel names.
         Image first(out.image.width, out.image.height, 3);
         for (std::size_t i = 0; i < out.image.pixel_count(); ++i) {
-            const Vec3f xyz = FilmBuffer::linear_srgb_to_xyz(Rgb(
+            const Vec3f xyz = linear_srgb_to_xyz(Rgb(
                 out.image.pixels[3 * i], out.image.pixels[3 * i + 1], out.image.pixels[3 * i + 2]));
             for (int c = 0; c < 3; ++c) first.pixels[3 * i + static_cast<std::size_t>(c)] = xyz[c];
         }

@@ -71,10 +71,9 @@ Ray Camera::generate_ray(const Vec2f& film_position, const Vec2f& u_lens) const 
         // Mitsuba 3's thinlens.cpp sample_ray: from the lens point towards the point the
         // pinhole ray of this film position meets on the focus plane (camera z =
         // focus_distance), starting on the near clip plane.
-        const float ndc_x = 2.f * film_position.x() / static_cast<float>(film_.width) - 1.f;
-        const float ndc_y = 2.f * film_position.y() / static_cast<float>(film_.height) - 1.f;
-        const Vec3f focus(-ndc_x * tan_half_fov_x_ * focus_distance_,
-                          -ndc_y * tan_half_fov_y_ * focus_distance_, focus_distance_);
+        const Vec2f plane = plane_from_film(film_position);
+        const Vec3f focus(plane.x() * focus_distance_, plane.y() * focus_distance_,
+                          focus_distance_);
         const Vec3f lens = lens_point(u_lens);
         const Vec3f d_camera = (focus - lens).normalized();
         Ray ray;
@@ -101,9 +100,8 @@ Ray Camera::generate_ray(const Vec2f& film_position, const Vec2f& u_lens) const 
     // Written out operation by operation (not with Eigen's product and normalized()), so that
     // generate_rays' SIMD lanes can repeat it in the same order and round alike. The
     // camera-space direction is (dx, dy, 1).
-    const float ndc_x = 2.f * film_position.x() / static_cast<float>(film_.width) - 1.f;
-    const float ndc_y = 2.f * film_position.y() / static_cast<float>(film_.height) - 1.f;
-    const float dx = -ndc_x * tan_half_fov_x_, dy = -ndc_y * tan_half_fov_y_;
+    const Vec2f plane = plane_from_film(film_position);
+    const float dx = plane.x(), dy = plane.y();
     // Rotated by world_from_camera's linear part in double, as Transform::apply_vector does,
     // then rounded to float; the z term is m(r, 2) * 1 = m(r, 2).
     const Eigen::Matrix4d& m = world_from_camera_.matrix;
@@ -165,17 +163,15 @@ CameraConnection Camera::project(const Vec3f& d, float* camera_z) const {
     if (camera_z) *camera_z = local.z();
     if (!(local.z() > 0.f)) return c;
     const float x = local.x() / local.z(), y = local.y() / local.z();
-    // generate_ray inverted: ndc = -X / tan_half_fov, film = (ndc + 1) size / 2.
-    const float film_x = 0.5f * (1.f - x / tan_half_fov_x_) * static_cast<float>(film_.width);
-    const float film_y = 0.5f * (1.f - y / tan_half_fov_y_) * static_cast<float>(film_.height);
-    if (!in_crop_window(film_x, film_y)) return c;
+    const Vec2f film = film_from_plane(x, y);  // generate_ray inverted
+    if (!in_crop_window(film.x(), film.y())) return c;
     // dw = dA_plane |cos| / |q|^2 for the plane point q in direction w (Veach 1997, eq. 4.4
     // with the plane as the surface), so W = dA_pixel / dw = |q|^2 / (A_pixel |cos|); for a
     // rigid to_world that is 1 / (A_pixel cos^3 theta).
     const Vec3f q = axis_z_ + x * axis_x_ + y * axis_y_;
     const float q_length = q.norm();
     const float cos_plane = std::abs(q.dot(plane_normal_)) / q_length;
-    c.film_position = Vec2f(film_x, film_y);
+    c.film_position = film;
     c.direction = q / q_length;
     c.importance = q_length * q_length / (pixel_area_on_plane_ * cos_plane);
     if (!std::isfinite(c.importance)) c.importance = 0.f;
@@ -301,14 +297,13 @@ CameraConnection Camera::project_from_lens(const Vec3f& lens, const Vec3f& d) co
     const float t = focus_distance_ / d.z();
     const float x = (lens.x() + t * d.x()) / focus_distance_;
     const float y = (lens.y() + t * d.y()) / focus_distance_;
-    const float film_x = 0.5f * (1.f - x / tan_half_fov_x_) * static_cast<float>(film_.width);
-    const float film_y = 0.5f * (1.f - y / tan_half_fov_y_) * static_cast<float>(film_.height);
-    if (!in_crop_window(film_x, film_y)) return c;
+    const Vec2f film = film_from_plane(x, y);
+    if (!in_crop_window(film.x(), film.y())) return c;
     // W = dA_film / dw at the lens point: the focus plane's pixel (focus_distance^2 times the
     // plane z = 1's) seen at distance focus_distance / cos theta and angle theta, so
     // W = 1 / (A_pixel cos^3 theta) as for the pinhole (Mitsuba 3's thinlens importance).
     const float cos_theta = d.z() / d.norm();
-    c.film_position = Vec2f(film_x, film_y);
+    c.film_position = film;
     c.importance = 1.f / (pixel_area_on_plane_ * cos_theta * cos_theta * cos_theta);
     if (!std::isfinite(c.importance)) c.importance = 0.f;
     return c;

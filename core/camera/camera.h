@@ -221,6 +221,18 @@ class Camera {
     bool orthographic_film_position(const Vec3f& local, Vec2f& film_position) const;
     /// Camera-space lens point of `u_lens` (thin lens).
     Vec3f lens_point(const Vec2f& u_lens) const;
+    /// The point (X, Y) of the perspective plane z = 1 a film position maps to: (-ndc_x tan_x,
+    /// -ndc_y tan_y) with ndc = 2 film / size - 1 (Mitsuba 3's perspective and thin lens).
+    Vec2f plane_from_film(const Vec2f& film_position) const {
+        const float ndc_x = 2.f * film_position.x() / static_cast<float>(film_.width) - 1.f;
+        const float ndc_y = 2.f * film_position.y() / static_cast<float>(film_.height) - 1.f;
+        return {-ndc_x * tan_half_fov_x_, -ndc_y * tan_half_fov_y_};
+    }
+    /// Its inverse: film = (1 - X / tan) size / 2.
+    Vec2f film_from_plane(float x, float y) const {
+        return {0.5f * (1.f - x / tan_half_fov_x_) * static_cast<float>(film_.width),
+                0.5f * (1.f - y / tan_half_fov_y_) * static_cast<float>(film_.height)};
+    }
     bool in_crop_window(float film_x, float film_y) const;
 };
 

@@ -8,6 +8,7 @@
 
 #include "core/image/image.h"
 #include "core/math/types.h"
+#include "core/scene/spectrum_rgb.h"
 
 namespace gdmlt {
 
@@ -51,14 +52,6 @@ class FilmBuffer {
     /// Mean of the samples' squared XYZ values per pixel (after track_second_moment; empty
     /// before).
     Image second_moment() const;
-
-    /// Linear sRGB (Rec. 709) to CIE XYZ, Mitsuba 3's srgb_to_xyz matrix (the `moment`
-    /// integrator's channels).
-    static Vec3f linear_srgb_to_xyz(const Rgb& rgb) {
-        return {0.412453f * rgb[0] + 0.357580f * rgb[1] + 0.180423f * rgb[2],
-                0.212671f * rgb[0] + 0.715160f * rgb[1] + 0.072169f * rgb[2],
-                0.019334f * rgb[0] + 0.119193f * rgb[1] + 0.950227f * rgb[2]};
-    }
 
   private:
     int width_, height_;

@@ -41,4 +41,12 @@ RgbD spectrum_pairs_to_linear_srgb(const std::vector<double>& wavelengths_nm,
 /// CIE 1931 XYZ -> linear sRGB (D65 white): the matrix Mitsuba 3 uses.
 RgbD xyz_to_linear_srgb(const RgbD& xyz);
 
+/// Linear sRGB (Rec. 709) -> CIE 1931 XYZ, Mitsuba 3's srgb_to_xyz matrix (the inverse of the
+/// above): the `moment` integrator's channels. Inline: the film calls it once per sample.
+inline Vec3f linear_srgb_to_xyz(const Rgb& rgb) {
+    return {0.412453f * rgb[0] + 0.357580f * rgb[1] + 0.180423f * rgb[2],
+            0.212671f * rgb[0] + 0.715160f * rgb[1] + 0.072169f * rgb[2],
+            0.019334f * rgb[0] + 0.119193f * rgb[1] + 0.950227f * rgb[2]};
+}
+
 }  // namespace gdmlt
