@@ -17,7 +17,7 @@ namespace {
 struct CameraRayConstants {
     float width = 0.f, height = 0.f;  // full film, pixels
     float tan_x = 0.f, tan_y = 0.f;   // tangents of the half fields of view
-    float near_clip = 0.f;
+    float near_clip = 0.f, far_clip = 0.f;
     double m[3][3] = {};  // world_from_camera's linear part, row by row
     float position[3] = {};
 };
@@ -78,9 +78,9 @@ Ray Camera::generate_ray(const Vec2f& film_position, const Vec2f& u_lens) const 
         const Vec3f d_camera = (focus - lens).normalized();
         Ray ray;
         ray.direction = world_from_camera_.apply_vector(d_camera).normalized();
-        ray.origin =
-            world_from_camera_.apply_point(lens) + ray.direction * (near_clip_ / d_camera.z());
-        ray.t_max = kInfinity;
+        const float t_near = near_clip_ / d_camera.z();
+        ray.origin = world_from_camera_.apply_point(lens) + ray.direction * t_near;
+        ray.t_max = far_clip_ / d_camera.z() - t_near;
         return ray;
     }
     if (projection_ == Projection::Orthographic) {
@@ -94,7 +94,7 @@ Ray Camera::generate_ray(const Vec2f& film_position, const Vec2f& u_lens) const 
         Ray ray;
         ray.origin = world_from_camera_.apply_point(local);
         ray.direction = orthographic_direction_;
-        ray.t_max = kInfinity;
+        ray.t_max = far_clip_ - near_clip_;
         return ray;
     }
     // Written out operation by operation (not with Eigen's product and normalized()), so that
@@ -117,13 +117,15 @@ Ray Camera::generate_ray(const Vec2f& film_position, const Vec2f& u_lens) const 
         const float length = std::sqrt(squared);
         d_world = Vec3f(d_world.x() / length, d_world.y() / length, d_world.z() / length);
     }
-    // near_clip is a distance along the optical axis (z = 1 in camera space), as in Mitsuba.
-    const float t_near = near_clip_ * std::sqrt(dx * dx + (dy * dy + 1.f));
+    // near_clip and far_clip are depths along the optical axis (z = 1 in camera space), as in
+    // Mitsuba: the ray runs between the two planes.
+    const float length_per_depth = std::sqrt(dx * dx + (dy * dy + 1.f));
+    const float t_near = near_clip_ * length_per_depth;
     Ray ray;
     ray.origin = Vec3f(position_.x() + d_world.x() * t_near, position_.y() + d_world.y() * t_near,
                        position_.z() + d_world.z() * t_near);
     ray.direction = d_world;
-    ray.t_max = kInfinity;
+    ray.t_max = far_clip_ * length_per_depth - t_near;
     return ray;
 }
 
@@ -139,6 +141,7 @@ void Camera::generate_rays(std::span<const float> film_x, std::span<const float>
     c.tan_x = tan_half_fov_x_;
     c.tan_y = tan_half_fov_y_;
     c.near_clip = near_clip_;
+    c.far_clip = far_clip_;
     for (int r = 0; r < 3; ++r) {
         for (int k = 0; k < 3; ++k) c.m[r][k] = world_from_camera_.matrix(r, k);
         c.position[r] = position_[r];
@@ -181,7 +184,7 @@ CameraConnection Camera::project(const Vec3f& d, float* camera_z) const {
 CameraConnection Camera::connect(const Vec3f& p, const Vec2f& u_lens) const {
     if (projection_ == Projection::ThinLens) {
         const Vec3f local = world_from_camera_.apply_inverse_point(p);
-        if (!(local.z() > near_clip_)) return CameraConnection{};
+        if (!in_depth_range(local.z())) return CameraConnection{};
         const Vec3f lens = lens_point(u_lens);
         CameraConnection c = project_from_lens(lens, local - lens);
         if (!(c.importance > 0.f)) return CameraConnection{};
@@ -198,7 +201,7 @@ CameraConnection Camera::connect(const Vec3f& p, const Vec2f& u_lens) const {
         // The one ray through `p`: it starts where p's camera-space (x, y) meet the near plane.
         const Vec3f local = world_from_camera_.apply_inverse_point(p);
         CameraConnection c;
-        if (!(local.z() > near_clip_) || !orthographic_film_position(local, c.film_position))
+        if (!in_depth_range(local.z()) || !orthographic_film_position(local, c.film_position))
             return c;
         c.position = world_from_camera_.apply_point(Vec3f(local.x(), local.y(), near_clip_));
         c.direction = orthographic_direction_;
@@ -209,9 +212,9 @@ CameraConnection Camera::connect(const Vec3f& p, const Vec2f& u_lens) const {
     const Vec3f d = p - position_;
     float camera_z = 0.f;
     CameraConnection c = project(d, &camera_z);
-    // Camera rays start on the plane z = near_clip in camera space (generate_ray): nothing
-    // nearer is seen.
-    if (!(camera_z > near_clip_)) return CameraConnection{};
+    // Camera rays run from the plane z = near_clip to z = far_clip in camera space
+    // (generate_ray): nothing nearer or farther is seen.
+    if (!in_depth_range(camera_z)) return CameraConnection{};
     c.position = position_;
     c.distance = d.norm();
     c.weight = c.importance / (c.distance * c.distance);
@@ -229,6 +232,8 @@ float Camera::pdf_area(const Vec3f& camera_p, const Vec3f& p, const Vec3f& n,
                        bool at_infinity) const {
     const float pixels =
         static_cast<float>(film_.crop_width) * static_cast<float>(film_.crop_height);
+    // Camera rays never reach a point outside the clip planes.
+    if (!at_infinity && !in_depth_range(world_from_camera_.apply_inverse_point(p).z())) return 0.f;
     if (projection_ == Projection::Orthographic) {
         if (at_infinity) return 0.f;  // parallel rays: a delta in direction
         Vec2f film_position;

@@ -149,14 +149,20 @@ class Camera {
                        std::span<Ray> rays, SimdIsa isa = best_simd_isa()) const;
 
     /// The camera's view of world point `p`, through the lens point `u_lens` chooses (thin
-    /// lens): invalid when `p` lies nearer than the near clip plane (camera rays start there)
-    /// or outside the crop window.
+    /// lens): invalid when `p` lies nearer than the near clip plane (camera rays start there),
+    /// beyond the far clip plane (they end there) or outside the crop window.
     CameraConnection connect(const Vec3f& p, const Vec2f& u_lens = Vec2f(0.5f, 0.5f)) const;
 
     /// Solid-angle density with which generate_ray from the pinhole, at film positions
     /// uniform over the crop window, produces world direction `w` (unit): W(w) / (crop pixel
     /// count); 0 outside. Pinhole only (the projector's).
     float pdf_direction_solid_angle(const Vec3f& w) const;
+
+    /// Mitsuba's far_clip: camera rays end at this camera-space depth (what lies beyond is not
+    /// seen; a ray that meets nothing before it sees the environment, as in Mitsuba). Infinite
+    /// unless set; scene files default to Mitsuba's 1e4.
+    void set_far_clip(float far_clip) { far_clip_ = far_clip; }
+    float far_clip() const { return far_clip_; }
     /// Area density at `p` (geometric normal `n`) of a camera ray that starts at the camera
     /// end `camera_p` (the pinhole, the ray's lens point, or for the orthographic camera any
     /// point of the ray), for film positions uniform over the crop window: the first vertex's
@@ -197,6 +203,7 @@ class Camera {
     Vec3f position_ = Vec3f::Zero();
     float tan_half_fov_x_ = 1.f, tan_half_fov_y_ = 1.f;
     float near_clip_ = 0.01f;
+    float far_clip_ = kInfinity;  // Mitsuba's far_clip (scene files default to its 1e4)
     // For the inverse map (world point -> film): the camera-space axes in world space (the
     // image plane z = 1 is axis_z_ + X axis_x_ + Y axis_y_), the inverse of their matrix, the
     // plane's unit normal and the world area one pixel covers on it. to_world may scale: all
@@ -234,6 +241,10 @@ class Camera {
                 0.5f * (1.f - y / tan_half_fov_y_) * static_cast<float>(film_.height)};
     }
     bool in_crop_window(float film_x, float film_y) const;
+    /// Whether a camera-space depth lies between the clip planes, where camera rays see.
+    bool in_depth_range(float camera_z) const {
+        return camera_z > near_clip_ && camera_z <= far_clip_;
+    }
 };
 
 /// The lens sample a camera ray needs: the stream's next two numbers for a thin lens, the

@@ -721,7 +721,7 @@ struct Builder {
         std::pair<float, std::string> fov{90.f, "x"};
         if (!orthographic) fov = read_fov(props);
         const auto near_clip = static_cast<float>(props.get_float("near_clip", 0.01));
-        // Rays are not cut at far_clip (Mitsuba's default 1e4 is beyond most scenes).
+        // Camera rays end at far_clip (Mitsuba's default 1e4).
         const double far_clip = props.get_float("far_clip", 1e4);
         // Mitsuba 3's projective cameras all read focus_distance (default far_clip); only the
         // thin lens uses it, so a pinhole camera given one (Mitsuba's own cbox.xml) renders as
@@ -755,6 +755,8 @@ struct Builder {
         if (!(near_clip > 0.f && near_clip <= kMaxWorldCoordinate))
             throw InputError(props.loc_of("near_clip"),
                              "near_clip must be positive and finite (at most 1e16)");
+        if (!(far_clip > near_clip))
+            throw InputError(props.loc_of("far_clip"), "far_clip must exceed near_clip");
         props.check_all_used();
 
         Film film;  // Mitsuba's default film: 768 x 576, Gaussian filter
@@ -781,6 +783,7 @@ struct Builder {
                                        aperture_radius, focus_distance);
         else
             camera = Camera(world_from_camera, film, fov.first, fov.second, near_clip);
+        camera.set_far_clip(static_cast<float>(std::min<double>(far_clip, kInfinity)));
         has_camera = true;
     }
 

@@ -325,45 +325,88 @@ TEST(Orthographic, ImportanceIntegratesToOnePerPixelOverTheAreaAcrossTheRays) {
 TEST(CameraRays, LanesAreGenerateRayBitForBit) {
     // generate_rays on every instruction set against generate_ray, all seven floats of every
     // ray compared as bits: both test cameras (the stretched one makes the normalisation do
-    // something), 203 positions (not a multiple of any vector width) over the whole film and
-    // beyond it (Pcg32 stream seed 11), its corners and centre, a huge one, and a NaN (which
-    // must come out as the scalar code's NaN ray, lane by lane).
+    // something), without and with a far clip plane, 203 positions (not a multiple of any vector
+    // width) over the whole film and beyond it (Pcg32 stream seed 11), its corners and centre, a
+    // huge one, and a NaN (which must come out as the scalar code's NaN ray, lane by lane).
     const float nan = std::numeric_limits<float>::quiet_NaN();
-    for (const bool stretched : {false, true}) {
-        const Camera camera = test_camera(stretched);
-        const Film& film = camera.film();
-        Pcg32 rng(11, 12);
-        std::vector<float> film_x, film_y;
-        const auto add = [&](float x, float y) {
-            film_x.push_back(x);
-            film_y.push_back(y);
-        };
-        const auto w = static_cast<float>(film.width), h = static_cast<float>(film.height);
-        add(0.f, 0.f);
-        add(w, h);
-        add(w, 0.f);
-        add(0.5f * w, 0.5f * h);
-        add(1e30f, -1e30f);
-        add(nan, 3.f);
-        while (film_x.size() < 203)
-            add((rng.next_float() * 1.5f - 0.25f) * w, (rng.next_float() * 1.5f - 0.25f) * h);
-        for (const SimdIsa isa : available_simd_isas()) {
-            SCOPED_TRACE(testing::Message() << "instruction set " << static_cast<int>(isa)
-                                            << " stretched " << stretched);
-            std::vector<Ray> rays(film_x.size());
-            camera.generate_rays(film_x, film_y, rays, isa);
-            for (std::size_t i = 0; i < rays.size(); ++i) {
-                const Ray expected = camera.generate_ray(Vec2f(film_x[i], film_y[i]));
-                for (int c = 0; c < 3; ++c) {
-                    ASSERT_EQ(std::bit_cast<std::uint32_t>(rays[i].origin[c]),
-                              std::bit_cast<std::uint32_t>(expected.origin[c]))
-                        << "ray " << i << " origin " << c;
-                    ASSERT_EQ(std::bit_cast<std::uint32_t>(rays[i].direction[c]),
-                              std::bit_cast<std::uint32_t>(expected.direction[c]))
-                        << "ray " << i << " direction " << c;
+    for (const float far_clip : {kInfinity, 7.5f})
+        for (const bool stretched : {false, true}) {
+            Camera camera = test_camera(stretched);
+            camera.set_far_clip(far_clip);
+            const Film& film = camera.film();
+            Pcg32 rng(11, 12);
+            std::vector<float> film_x, film_y;
+            const auto add = [&](float x, float y) {
+                film_x.push_back(x);
+                film_y.push_back(y);
+            };
+            const auto w = static_cast<float>(film.width), h = static_cast<float>(film.height);
+            add(0.f, 0.f);
+            add(w, h);
+            add(w, 0.f);
+            add(0.5f * w, 0.5f * h);
+            add(1e30f, -1e30f);
+            add(nan, 3.f);
+            while (film_x.size() < 203)
+                add((rng.next_float() * 1.5f - 0.25f) * w, (rng.next_float() * 1.5f - 0.25f) * h);
+            for (const SimdIsa isa : available_simd_isas()) {
+                SCOPED_TRACE(testing::Message() << "instruction set " << static_cast<int>(isa)
+                                                << " stretched " << stretched);
+                std::vector<Ray> rays(film_x.size());
+                camera.generate_rays(film_x, film_y, rays, isa);
+                for (std::size_t i = 0; i < rays.size(); ++i) {
+                    const Ray expected = camera.generate_ray(Vec2f(film_x[i], film_y[i]));
+                    for (int c = 0; c < 3; ++c) {
+                        ASSERT_EQ(std::bit_cast<std::uint32_t>(rays[i].origin[c]),
+                                  std::bit_cast<std::uint32_t>(expected.origin[c]))
+                            << "ray " << i << " origin " << c;
+                        ASSERT_EQ(std::bit_cast<std::uint32_t>(rays[i].direction[c]),
+                                  std::bit_cast<std::uint32_t>(expected.direction[c]))
+                            << "ray " << i << " direction " << c;
+                    }
+                    ASSERT_EQ(std::bit_cast<std::uint32_t>(rays[i].t_max),
+                              std::bit_cast<std::uint32_t>(expected.t_max))
+                        << "ray " << i << " far clip " << far_clip;
                 }
-                ASSERT_EQ(rays[i].t_max, expected.t_max);
             }
+        }
+}
+
+TEST(FarClip, CameraRaysEndOnTheFarPlaneAndNothingBeyondIsSeen) {
+    // Mitsuba's far_clip as a camera-space depth, for the rigid pinhole, the thin lens and the
+    // orthographic camera (far clip 7.5): each ray (300 film positions and lens points, Pcg32
+    // stream seed 5) ends where its camera-space depth is 7.5; a point on it 1% short of that
+    // connects back to the camera with a nonzero density, one 1% beyond does not (connect and
+    // pdf_area, which light tracing and BDPT use).
+    const Camera rigid = test_camera(false);
+    std::vector<Camera> cameras = {
+        rigid, test_thin_lens(),
+        Camera::orthographic(rigid.world_from_camera(), rigid.film(), 0.5f)};
+    for (Camera& camera : cameras) {
+        camera.set_far_clip(7.5f);
+        SCOPED_TRACE(projection_name(camera.projection()));
+        Pcg32 rng(5, 6);
+        for (int i = 0; i < 300; ++i) {
+            const Vec2f film_position = random_crop_position(camera.film(), rng);
+            const Vec2f u_lens(rng.next_float(), rng.next_float());
+            const Ray ray = camera.generate_ray(film_position, u_lens);
+            const auto depth = [&](float t) {
+                return camera.world_from_camera()
+                    .apply_inverse_point(Vec3f(ray.origin + t * ray.direction))
+                    .z();
+            };
+            ASSERT_NEAR(depth(ray.t_max), 7.5f, 1e-4f * 7.5f) << i;
+            // The points 1% short of the far plane and 1% beyond it, on this ray.
+            const float t_near_side = ray.t_max - 0.075f / (depth(1.f) - depth(0.f));
+            const float t_far_side = ray.t_max + 0.075f / (depth(1.f) - depth(0.f));
+            const Vec3f inside = ray.origin + t_near_side * ray.direction;
+            const Vec3f beyond = ray.origin + t_far_side * ray.direction;
+            EXPECT_GT(camera.connect(inside, u_lens).importance, 0.f) << i;
+            EXPECT_EQ(camera.connect(beyond, u_lens).importance, 0.f) << i;
+            const Vec3f camera_end = camera.camera_end(ray.origin, u_lens);
+            const Vec3f n = -ray.direction;
+            EXPECT_GT(camera.pdf_area(camera_end, inside, n), 0.f) << i;
+            EXPECT_EQ(camera.pdf_area(camera_end, beyond, n), 0.f) << i;
         }
     }
 }

@@ -172,6 +172,8 @@ TEST(SceneBuild, GeometryAndCamerasBeyondTheTraceableWorldAreErrorsNotAborts) {
             camera + R"(<float name="near_clip" value="inf"/></sensor>)" + kLight,
             camera + R"(<float name="near_clip" value="1e20"/></sensor>)" + kLight,
             camera + R"(<float name="near_clip" value="0"/></sensor>)" + kLight,
+            camera + R"(<float name="far_clip" value="0.005"/></sensor>)" + kLight,
+            camera + R"(<float name="far_clip" value="nan"/></sensor>)" + kLight,
             camera + R"(<transform name="to_world"><translate x="1e38"/></transform></sensor>)" +
                 kLight,
             std::string(R"(<shape type="sphere"><float name="radius" value="inf"/></shape>)"),
