@@ -359,19 +359,35 @@ TEST(Constraints, TracedChainsSatisfyTheirConstraints) {
     }
 }
 
+/// A triangle whose texture u runs along p2 - p0 (world y), not along its first edge, with
+/// smooth vertex normals (normalised here).
+TriangleMesh textured_smooth_triangle(const std::array<Vec3f, 3>& normals) {
+    TriangleMesh mesh;
+    mesh.positions = {{0, 0, 0}, {2, 0, 0.3f}, {0, 1, 0.1f}};
+    mesh.indices = {0, 1, 2};
+    mesh.uvs = {{0, 0}, {0, 1}, {1, 0}};  // u grows along p2 - p0, v along p1 - p0
+    for (const Vec3f& n : normals) mesh.normals.push_back(n.normalized());
+    return mesh;
+}
+
+/// The walk's constraint frame at `sp` is the shading frame the renderer evaluates BSDFs in.
+void expect_walk_frame_is_the_renderers(const SurfacePoint& sp, const SurfaceInteraction& si,
+                                        int i) {
+    const std::optional<ConstraintFrame> frame = constraint_frame(sp);
+    ASSERT_TRUE(frame.has_value());
+    EXPECT_LT((frame->s - si.shading.s.cast<double>()).norm(), 1e-5) << i;
+    EXPECT_LT((frame->t - si.shading.t.cast<double>()).norm(), 1e-5) << i;
+}
+
 TEST(Constraints, ShadingFrameFollowsTheTextureAndMatchesTheRenderersFrame) {
     // A triangle whose texture u runs along world y (not along its first edge, x): the shading
     // frame's s must follow u (Mitsuba 3 orients anisotropic BSDFs by the texture's dp/du), and
     // the manifold walk's frame (constraint_frame) must be the surface interaction's, or
     // anisotropic half-vector constraints would be solved in another frame than the one the
     // BSDF is evaluated in. A smooth normal tilts the frame; 20 points (seed 7).
-    TriangleMesh mesh;
-    mesh.positions = {{0, 0, 0}, {2, 0, 0.3f}, {0, 1, 0.1f}};
-    mesh.indices = {0, 1, 2};
-    mesh.uvs = {{0, 0}, {0, 1}, {1, 0}};  // u grows along p2 - p0, v along p1 - p0
-    mesh.normals = {Vec3f(0.1f, 0, 1).normalized(), Vec3f(0, 0.2f, 1).normalized(),
-                    Vec3f(-0.1f, 0.1f, 1).normalized()};
-    const Shape shape(std::move(mesh), 0, "t");
+    const Shape shape(
+        textured_smooth_triangle({Vec3f(0.1f, 0, 1), Vec3f(0, 0.2f, 1), Vec3f(-0.1f, 0.1f, 1)}), 0,
+        "t");
     std::mt19937 rng(7);
     std::uniform_real_distribution<float> uniform(0.05f, 0.45f);
     for (int i = 0; i < 20; ++i) {
@@ -380,10 +396,7 @@ TEST(Constraints, ShadingFrameFollowsTheTextureAndMatchesTheRenderersFrame) {
         si.shape = 0;
         const std::optional<SurfacePoint> sp = surface_point_from(shape, si);
         ASSERT_TRUE(sp.has_value());
-        const std::optional<ConstraintFrame> frame = constraint_frame(*sp);
-        ASSERT_TRUE(frame.has_value());
-        EXPECT_LT((frame->s - si.shading.s.cast<double>()).norm(), 1e-5) << i;
-        EXPECT_LT((frame->t - si.shading.t.cast<double>()).norm(), 1e-5) << i;
+        expect_walk_frame_is_the_renderers(*sp, si, i);
         // dp/du = p2 - p0 here: s is its part orthogonal to the shading normal.
         const Vec3f du = Vec3f(0, 1, 0.1f);
         const Vec3f want = (du - si.shading.n * si.shading.n.dot(du)).normalized();
@@ -396,12 +409,8 @@ TEST(Constraints, AnInstancesSurfacePointIsTheRenderersInteraction) {
     // and stretches unevenly: the walk's surface point (world corners in double) and the
     // renderer's interaction (object space mapped to world) must describe one surface: the
     // same point, normals, shading frame and normal derivatives, at 20 points (seed 8).
-    TriangleMesh mesh;
-    mesh.positions = {{0, 0, 0}, {2, 0, 0.3f}, {0, 1, 0.1f}};
-    mesh.indices = {0, 1, 2};
-    mesh.uvs = {{0, 0}, {0, 1}, {1, 0}};
-    mesh.normals = {Vec3f(0.1f, 0, 1).normalized(), Vec3f(0, 0.4f, 1).normalized(),
-                    Vec3f(-0.3f, 0.1f, 1).normalized()};
+    TriangleMesh mesh =
+        textured_smooth_triangle({Vec3f(0.1f, 0, 1), Vec3f(0, 0.4f, 1), Vec3f(-0.3f, 0.1f, 1)});
     Mat3f linear;
     linear << -1.3f, 0.2f, 0.f, 0.1f, 0.7f, 0.3f, 0.f, -0.2f, 1.6f;
     const Shape shape(MeshInstance(std::make_shared<const Shape>(std::move(mesh), 0, "object"),
@@ -421,10 +430,7 @@ TEST(Constraints, AnInstancesSurfacePointIsTheRenderersInteraction) {
         EXPECT_LT((sp->n_shading - si.shading.n.cast<double>()).norm(), 1e-5) << i;
         EXPECT_LT((sp->dn_du - si.dn_du.cast<double>()).norm(), 1e-5) << i;
         EXPECT_LT((sp->dn_dv - si.dn_dv.cast<double>()).norm(), 1e-5) << i;
-        const std::optional<ConstraintFrame> frame = constraint_frame(*sp);
-        ASSERT_TRUE(frame.has_value());
-        EXPECT_LT((frame->s - si.shading.s.cast<double>()).norm(), 1e-5) << i;
-        EXPECT_LT((frame->t - si.shading.t.cast<double>()).norm(), 1e-5) << i;
+        expect_walk_frame_is_the_renderers(*sp, si, i);
         // The interaction's normal derivatives are those of its own normal field.
         constexpr float h = 1e-3f;
         for (int axis = 0; axis < 2; ++axis) {
