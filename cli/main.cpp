@@ -622,7 +622,13 @@ IntegratorResult run_gdmlt(const Scene& scene, const RenderOptions& options,
 /// checks every estimate against a measured slope. GDMLT's peak rose to 517 (128^2 to 384^2)
 /// with its variance layers (batch sums, 36 bytes per slot) and the GDPT passes of its budget
 /// split, whose buffers wait for the combination while the chains run: 650.
-double peak_bytes_per_pixel(const std::string& integrator, bool features, bool adap) {
+double peak_bytes_per_pixel(const std::string& integrator, bool features, bool adap,
+                            bool splat_film) {
+    // The path tracer with a filter wider than a pixel also keeps its splatting film
+    // (core/render/splat_film.h): a pass's records (4 spp x 24 bytes) and the weighted sums
+    // (32 bytes) beside the box film: measured 168 (128^2 to 1024^2, 8 spp), rounded up by
+    // about a quarter.
+    if (integrator == "path" && splat_film) return 216.0 + (features ? 63.0 : 0.0);
     double bytes = integrator == "gdpt"                             ? 493.0
                    : integrator == "gdmlt"                          ? 650.0
                    : integrator == "pssmlt" || integrator == "mmlt" ? 78.0
@@ -642,7 +648,8 @@ double peak_bytes_per_pixel(const std::string& integrator, bool features, bool a
 /// allocating them: `-D res=60000` used to allocate until std::bad_alloc ("internal error").
 void check_memory(const Film& film, const std::string& integrator, bool features, bool adap) {
     const double pixels = static_cast<double>(film.crop_width) * film.crop_height;
-    const double need = pixels * peak_bytes_per_pixel(integrator, features, adap);
+    const double need =
+        pixels * peak_bytes_per_pixel(integrator, features, adap, !film.filter.is_box());
     const long pages = ::sysconf(_SC_PHYS_PAGES), page_size = ::sysconf(_SC_PAGE_SIZE);
     if (pages <= 0 || page_size <= 0) return;  // unknown: let the allocation decide
     const double have = static_cast<double>(pages) * static_cast<double>(page_size);
@@ -678,8 +685,10 @@ int run_render(const RenderOptions& options) {
     if (options.max_depth && (*options.max_depth == 0 || *options.max_depth < -1))
         throw InputError("--max-depth must be -1 or at least 1");
     const bool gradient_domain = integrator == "gdpt" || integrator == "gdmlt";
-    // The film's filter (core/camera/pixel_filter.h): sampled and splatted by the others, applied
-    // to the reconstructed image by the gradient-domain integrators.
+    // The film's filter: the path tracer splats as Mitsuba 3's film (core/render/splat_film.h);
+    // the other pixel passes draw positions from it and light paths splat through it
+    // (core/camera/pixel_filter.h); the gradient-domain integrators apply it to the
+    // reconstructed image.
     const PixelFilter film_filter = scene.camera().film().filter;
     if (gradient_domain) scene.set_film_filter(PixelFilter());
     const std::string neighbours = options.neighbours.empty() ? "lattice" : options.neighbours;
@@ -813,7 +822,10 @@ int run_render(const RenderOptions& options) {
         {"radius", film_filter.radius()},
         {"applied", film_filter.is_box() ? "pixel"
                     : gradient_domain    ? "image convolution after the reconstruction"
-                                         : "sampled and splatted"}};
+                    : integrator == "path"
+                        ? "splatted: weighted mean of the samples within the radius (Mitsuba 3's "
+                          "film)"
+                        : "positions drawn from the filter; light paths splatted"}};
     // Which camera ran (and, for the thin lens, that its rays draw two more numbers).
     config["camera"] = projection_name(scene.camera().projection());
     // Mitsuba 3's `moment` layers: written by the path tracer, whose pixels are means of

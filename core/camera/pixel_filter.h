@@ -7,9 +7,12 @@
 // samples inside it and normalises by the weights it saw: hdrfilm without sample_border). The
 // box filter (radius 1/2) makes h_p the pixel's indicator.
 //
-// Integrators estimate I(p) in one of two ways, both unbiased for the same h_p:
-//  - pixel passes draw the sample's film position from h_p itself (filter importance sampling,
-//    as pbrt-v4 does; Mitsuba's ratio of weighted sums converges to the same I(p));
+// Integrators estimate I(p) in one of three ways:
+//  - the path tracer does as Mitsuba's film: positions uniform in their pixel, each sample
+//    weighted into every pixel within the radius, a pixel the ratio of its weighted sums
+//    (core/render/splat_film.h; consistent, and much less noisy at equal spp);
+//  - the other pixel passes draw the sample's film position from h_p itself (filter importance
+//    sampling, as pbrt-v4 does: unbiased, one pixel per sample);
 //  - splatting integrators (light tracing, BDPT's t = 1 strategies, the Markov chains), whose
 //    positions come from elsewhere, add h_p(x) times the value to every pixel p near x.
 // Filters with negative lobes (Mitsuba's mitchell, catmullrom, lanczos) are not supported.

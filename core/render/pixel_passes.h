@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <utility>
 
 #include "core/camera/camera.h"
@@ -28,6 +29,7 @@ struct PixelPassSettings {
     double time_budget_s = 0.0;  // 0: none
     std::uint64_t seed = 0;
     int max_pass_spp = 64;  // with a time budget: the largest pass (without: passes of ~1 s)
+    bool limit_every_pass = false;  // max_pass_spp also without a time budget
 };
 
 /// The passes of an integrator whose settings have spp, time_budget_s and seed.
@@ -66,14 +68,18 @@ inline std::uint64_t pixel_stream_id(const Film& film, int x, int y) {
     return static_cast<std::uint64_t>(y + film.crop_offset_y) * film.width +
            static_cast<std::uint64_t>(x + film.crop_offset_x);
 }
+/// Full-film position of a sample of crop-window pixel (x, y), uniform in the pixel: its
+/// corner plus `jitter` in [0, 1)^2.
+inline Vec2f uniform_film_position(const Film& film, int x, int y, float jitter_x, float jitter_y) {
+    return {static_cast<float>(x + film.crop_offset_x) + jitter_x,
+            static_cast<float>(y + film.crop_offset_y) + jitter_y};
+}
 /// Full-film position of a sample of crop-window pixel (x, y) from `jitter` in [0, 1)^2: with
 /// the box filter the pixel's corner plus the jitter; with another filter, drawn from the
 /// pixel's filter h_p (core/camera/pixel_filter.h), each axis by inverting its distribution.
 inline Vec2f jittered_film_position(const Film& film, int x, int y, float jitter_x,
                                     float jitter_y) {
-    if (film.filter.is_box())
-        return {static_cast<float>(x + film.crop_offset_x) + jitter_x,
-                static_cast<float>(y + film.crop_offset_y) + jitter_y};
+    if (film.filter.is_box()) return uniform_film_position(film, x, y, jitter_x, jitter_y);
     const float cx = static_cast<float>(x) + 0.5f, cy = static_cast<float>(y) + 0.5f;
     const float dx = film.filter.sample(jitter_x, -cx, static_cast<float>(film.crop_width) - cx);
     const float dy = film.filter.sample(jitter_y, -cy, static_cast<float>(film.crop_height) - cy);
@@ -92,13 +98,15 @@ inline PixelSample pixel_sample(const Film& film, std::uint64_t seed, int x, int
 /// Runs the passes: calls `sample_tile(tile)` for every tile of every pass, on all cores;
 /// `sample_tile` returns false if it stopped early because `cancel` was set, and must only
 /// write state owned by the tile's pixels, drawing sample s of pixel (x, y) from
-/// pixel_sample(film, settings.seed, x, y, s). `on_pass_done(spp_completed)` after each pass;
+/// pixel_sample(film, settings.seed, x, y, s). `on_pass_start(first_sample, sample_count)`
+/// (optional) before each pass, `on_pass_done(spp_completed)` after each complete one;
 /// `samples_done` (optional) counts samples as tiles finish.
 template <typename TileFn, typename PassFn>
 PixelPassResult run_tile_passes(const Film& film, const PixelPassSettings& settings,
                                 const std::atomic<bool>* cancel, TileFn&& sample_tile,
                                 PassFn&& on_pass_done,
-                                std::atomic<std::uint64_t>* samples_done = nullptr) {
+                                std::atomic<std::uint64_t>* samples_done = nullptr,
+                                const std::function<void(int, int)>& on_pass_start = {}) {
     constexpr int kTileSize = kPixelPassTileSize;
     const auto cancelled = [&] { return cancel && cancel->load(std::memory_order_relaxed); };
     const int width = film.crop_width, height = film.crop_height;
@@ -127,9 +135,11 @@ PixelPassResult run_tile_passes(const Film& film, const PixelPassSettings& setti
             // (equal-time comparisons depend on it).
             pass = std::min(settings.max_pass_spp, pass);
         }
+        if (settings.limit_every_pass) pass = std::min(settings.max_pass_spp, pass);
         const double fit = seconds_per_spp > 0.0 ? pass_seconds / seconds_per_spp : 1.0;
         pass = static_cast<int>(std::clamp(fit, 1.0, static_cast<double>(pass)));
         const int first = result.spp_completed;
+        if (on_pass_start) on_pass_start(first, pass);
         const Clock::time_point pass_start = Clock::now();
         tbb::parallel_for(
             tbb::blocked_range<int>(0, tile_count), [&](const tbb::blocked_range<int>& r) {

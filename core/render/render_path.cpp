@@ -16,6 +16,7 @@
 #include "core/path/diffuse_lanes.h"
 #include "core/render/film_buffer.h"
 #include "core/render/pixel_passes.h"
+#include "core/render/splat_film.h"
 #include "core/sampling/pcg_lanes.h"
 #include "core/sampling/rng.h"
 
@@ -63,8 +64,10 @@ static_assert(kWavefrontPaths <= DiffuseLanes::kCapacity && kWavefrontPaths <= P
 static_assert(kDimensionsPerBounce <= static_cast<int>(PcgLanes::kMaxDraws));
 
 struct WavefrontLane {
-    int x = 0, y = 0;  // crop-window pixel
-    PathState state;   // its random numbers: the Wavefront's `streams`, same index
+    int x = 0, y = 0;                     // crop-window pixel
+    int sample = 0;                       // the sample's index in its pixel
+    Vec2f film_position = Vec2f::Zero();  // full-film position
+    PathState state;  // its random numbers: the Wavefront's `streams`, same index
 };
 
 /// The path tracer's wavefront (Laine et al. 2013, "Megakernels considered harmful", in its
@@ -194,7 +197,7 @@ struct Wavefront {
         const std::size_t i = lanes.size();
         pixel_keys[i] = pixel_stream_id(film, x, y);  // pixel_sample's stream identifiers
         sample_keys[i] = static_cast<std::uint64_t>(sample);
-        lanes.push_back(WavefrontLane{x, y, {}});
+        lanes.push_back(WavefrontLane{x, y, sample, Vec2f::Zero(), {}});
     }
 
     /// pixel_sample and generate_ray for every queued path at once, in SIMD lanes (one at a
@@ -202,7 +205,9 @@ struct Wavefront {
     /// a double-precision rotation and two square roots per path, all latency-bound):
     /// each path's stream (after its two jitter draws) and camera ray are those of
     /// pixel_sample(film, seed, x, y, sample) and generate_ray, bit for bit.
-    void start(const Camera& camera, std::uint64_t seed, PathCounters& counters) {
+    /// `splat`: positions uniform in their pixel (the film splats them, SplatFilm), else drawn
+    /// from the pixel's filter.
+    void start(const Camera& camera, std::uint64_t seed, bool splat, PathCounters& counters) {
         const Film& film = camera.film();
         const std::size_t count = lanes.size();
         streams.seed_samples(count, seed, pixel_keys, sample_keys);
@@ -210,8 +215,11 @@ struct Wavefront {
         const bool lens = camera.needs_lens_sample();
         streams.next_floats(count, lens ? 4 : 2, numbers);
         for (std::size_t i = 0; i < count; ++i) {
-            const Vec2f position =
-                jittered_film_position(film, lanes[i].x, lanes[i].y, numbers[0][i], numbers[1][i]);
+            const Vec2f position = splat ? uniform_film_position(film, lanes[i].x, lanes[i].y,
+                                                                 numbers[0][i], numbers[1][i])
+                                         : jittered_film_position(film, lanes[i].x, lanes[i].y,
+                                                                  numbers[0][i], numbers[1][i]);
+            lanes[i].film_position = position;
             film_x[i] = position.x();
             film_y[i] = position.y();
         }
@@ -228,14 +236,22 @@ struct Wavefront {
             lanes[i].state = start_path(queued_rays[i], counters);
     }
 
-    /// Adds the finished paths to the film in batch order and empties the batch.
-    void flush(FilmBuffer& buffer, std::uint64_t& dropped) {
+    /// Adds the finished paths to the film in batch order (or records them in `splat`, when
+    /// given) and empties the batch.
+    void flush(FilmBuffer& buffer, SplatFilm* splat, const Film& film, std::uint64_t& dropped) {
         for (const WavefrontLane& lane : lanes) {
-            if (is_finite(lane.state.radiance)) {
+            const bool finite = is_finite(lane.state.radiance);
+            dropped += finite ? 0 : 1;
+            if (splat) {
+                const Vec2f crop_position(
+                    lane.film_position.x() - static_cast<float>(film.crop_offset_x),
+                    lane.film_position.y() - static_cast<float>(film.crop_offset_y));
+                splat->record(lane.x, lane.y, lane.sample, crop_position,
+                              finite ? lane.state.radiance : Rgb(Rgb::Zero()));
+            } else if (finite) {
                 buffer.add(lane.x, lane.y, lane.state.radiance);
             } else {
                 buffer.add_dropped(lane.x, lane.y);
-                ++dropped;
             }
         }
         lanes.clear();
@@ -255,6 +271,13 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
 
     FilmBuffer buffer(width, height);
     if (settings.second_moment) buffer.track_second_moment();
+    // A filter wider than a pixel: Mitsuba 3's splatting film (splat_film.h), whose ratio of
+    // weighted sums has much less noise at equal spp than positions drawn from the filter.
+    std::optional<SplatFilm> splat;
+    if (!film.filter.is_box()) {
+        splat.emplace(width, height, film.filter);
+        if (settings.second_moment) splat->track_second_moment();
+    }
     tbb::enumerable_thread_specific<PathCounters> counters;
     tbb::enumerable_thread_specific<std::uint64_t> dropped(0);
     std::atomic<std::uint64_t> samples_done{0};
@@ -274,7 +297,12 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
                               progress_interval_s);
 
     RenderStats stats;
-    const PixelPassSettings passes = pixel_pass_settings(settings, 64);
+    PixelPassSettings passes = pixel_pass_settings(settings, 64);
+    if (splat) {
+        // The splatting film keeps a pass's samples (24 bytes each) until the pass ends.
+        passes.max_pass_spp = 4;
+        passes.limit_every_pass = true;
+    }
     tbb::enumerable_thread_specific<Wavefront> wavefronts;
     const PixelPassResult done = run_tile_passes(
         film, passes, cancel,
@@ -283,9 +311,9 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
             PathCounters& tile_counters = counters.local();
             std::uint64_t& tile_dropped = dropped.local();
             const auto trace_batch = [&] {
-                wavefront.start(scene.camera(), passes.seed, tile_counters);
+                wavefront.start(scene.camera(), passes.seed, splat.has_value(), tile_counters);
                 wavefront.run(scene, settings.path, tile_counters);
-                wavefront.flush(buffer, tile_dropped);
+                wavefront.flush(buffer, splat ? &*splat : nullptr, film, tile_dropped);
             };
             // Whole pixels' samples in tile order, kWavefrontPaths at a time (a pixel's samples
             // may straddle two batches; the film adds them in sample order all the same).
@@ -306,7 +334,14 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
             trace_batch();
             return true;
         },
-        [](int) {}, &samples_done);
+        [&](int) {
+            if (splat) splat->end_pass();
+        },
+        &samples_done,
+        [&](int first_sample, int sample_count) {
+            if (splat) splat->begin_pass(first_sample, sample_count);
+        });
+    if (splat) splat->end_pass();  // an interrupted pass's samples
     stats.passes = done.passes;
     reporter.stop();
 
@@ -315,6 +350,10 @@ RenderOutput render_path(const Scene& scene, const RenderSettings& settings,
     stats.spp_completed = done.spp_completed;
     for (const PathCounters& c : counters) stats.counters += c;
     for (std::uint64_t d : dropped) stats.nonfinite_samples_dropped += d;
+    if (splat) {
+        stats.samples = splat->total_count();
+        return RenderOutput{splat->mean(), stats, splat->second_moment()};
+    }
     stats.samples = buffer.total_count();
     return RenderOutput{buffer.mean(), stats, buffer.second_moment()};
 }

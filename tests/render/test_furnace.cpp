@@ -76,5 +76,16 @@ TEST(Determinism, SameSeedGivesTheSameImageAtOneAndTwoThreads) {
     EXPECT_FALSE(one.image == other_seed.image);
 }
 
+TEST(Determinism, AGaussianFilmGivesTheSameImageAtOneAndTwoThreads) {
+    // The splatting film (core/render/splat_film.h): samples reach pixels of other tiles, and
+    // the image is still the same at one and two threads.
+    Scene scene = determinism_scene(64);
+    scene.set_film_filter(PixelFilter::gaussian(0.5f));
+    const auto [one, two] = test::at_one_and_two_threads([&] { return render(scene, 4, 42); });
+    EXPECT_TRUE(one.image == two.image);
+    const RenderOutput box = render(determinism_scene(64), 4, 42);
+    EXPECT_FALSE(one.image == box.image);  // the filter did take part
+}
+
 }  // namespace
 }  // namespace gdmlt
