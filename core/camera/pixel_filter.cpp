@@ -58,6 +58,13 @@ float PixelFilter::eval(float x) const {
 }
 
 void PixelFilter::tabulate() {
+    auto weights = std::make_shared<std::vector<float>>(kWeightBins + 1, 0.f);
+    for (int i = 0; i <= kWeightBins; ++i)
+        (*weights)[static_cast<std::size_t>(i)] =
+            eval(static_cast<float>(static_cast<double>(radius_) * i / kWeightBins));
+    weights_ = weights;
+    table_scale_ = static_cast<float>(kWeightBins) / radius_;
+
     auto cdf = std::make_shared<std::vector<double>>(kBins + 1, 0.0);
     const double h = 2.0 * radius_ / kBins;
     for (int i = 0; i < kBins; ++i) {

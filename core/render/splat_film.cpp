@@ -67,7 +67,8 @@ void SplatFilm::end_pass() {
                             const Record& r =
                                 records_[(static_cast<std::size_t>(qy) * width_ + qx) * count + s];
                             if (!r.valid) continue;
-                            const float w = filter_.eval(r.x - cx) * filter_.eval(r.y - cy);
+                            const float w =
+                                filter_.eval_tabulated(r.x - cx) * filter_.eval_tabulated(r.y - cy);
                             if (!(w > 0.f)) continue;
                             const double wd = w;
                             weight += wd;
